@@ -1,0 +1,218 @@
+"""Python binding of the mocodec C99 runtime (cffi).
+
+A thin wrapper: every call goes to ``runtime_c``; a result other than ``MCD_OK`` becomes a
+:class:`RuntimeResultError` carrying the runtime's code.
+
+>>> asset = Asset(open("walk.mcd", "rb").read())          # doctest: +SKIP
+>>> rot, trans = asset.sample_frames(0, world=True)        # doctest: +SKIP
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from ._native import ffi, lib
+
+__all__ = [
+    "Asset",
+    "ClipInfo",
+    "NodeInfo",
+    "Result",
+    "RuntimeResultError",
+    "SAMPLE_LOOP",
+    "SAMPLE_NEAREST",
+    "SAMPLE_WORLD",
+    "VALIDATE_SKIP_CHECKSUM",
+    "validate",
+    "version",
+]
+
+SAMPLE_WORLD = lib.MCD_SAMPLE_WORLD
+SAMPLE_LOOP = lib.MCD_SAMPLE_LOOP
+SAMPLE_NEAREST = lib.MCD_SAMPLE_NEAREST
+VALIDATE_SKIP_CHECKSUM = lib.MCD_VALIDATE_SKIP_CHECKSUM
+
+
+class Result(IntEnum):
+    """The runtime's result codes (``mcd_result``)."""
+
+    OK = lib.MCD_OK
+    INVALID_ARGUMENT = lib.MCD_ERROR_INVALID_ARGUMENT
+    TRUNCATED = lib.MCD_ERROR_TRUNCATED
+    BAD_MAGIC = lib.MCD_ERROR_BAD_MAGIC
+    VERSION_TOO_NEW = lib.MCD_ERROR_VERSION_TOO_NEW
+    VERSION_TOO_OLD = lib.MCD_ERROR_VERSION_TOO_OLD
+    CHECKSUM = lib.MCD_ERROR_CHECKSUM
+    MALFORMED = lib.MCD_ERROR_MALFORMED
+    UNSUPPORTED = lib.MCD_ERROR_UNSUPPORTED
+    BUFFER_TOO_SMALL = lib.MCD_ERROR_BUFFER_TOO_SMALL
+    OUT_OF_RANGE = lib.MCD_ERROR_OUT_OF_RANGE
+    SCRATCH_MISMATCH = lib.MCD_ERROR_SCRATCH_MISMATCH
+    TRAILING_DATA = lib.MCD_ERROR_TRAILING_DATA
+    NOT_FOUND = lib.MCD_ERROR_NOT_FOUND
+
+
+class RuntimeResultError(Exception):
+    """A runtime call returned an error code."""
+
+    def __init__(self, code: int, context: str = "") -> None:
+        self.code = Result(code) if code in Result._value2member_map_ else code
+        message = ffi.string(lib.mcd_result_string(code)).decode()
+        super().__init__(f"{context}: {message}" if context else message)
+
+
+def _check(code: int, context: str) -> None:
+    if code != lib.MCD_OK:
+        raise RuntimeResultError(code, context)
+
+
+def version() -> tuple[int, int, int]:
+    """The runtime library's version (major, minor, patch)."""
+    v = lib.mcd_version()
+    return (v >> 16, (v >> 8) & 0xFF, v & 0xFF)
+
+
+def validate(data: bytes, skip_checksum: bool = False) -> Result:
+    """Validate asset bytes; returns the result code (never raises for bad bytes)."""
+    flags = VALIDATE_SKIP_CHECKSUM if skip_checksum else 0
+    return Result(lib.mcd_validate(ffi.from_buffer(data), len(data), flags))
+
+
+@dataclass(frozen=True)
+class ClipInfo:
+    index: int
+    name: str
+    skeleton: int
+    codec: int
+    frame_count: int
+    frame_rate: float
+    duration: float
+    node_count: int
+
+
+@dataclass(frozen=True)
+class NodeInfo:
+    name: str
+    parent: int
+    is_end_site: bool
+    rest_offset: tuple[float, float, float]
+    channels: tuple[int, ...]
+
+
+class Asset:
+    """An opened asset. Keeps its own copy of the bytes and one scratch buffer, so one
+    ``Asset`` must not be sampled from several Python threads at once."""
+
+    def __init__(self, data: bytes, skip_checksum: bool = False) -> None:
+        self._data = bytes(data)
+        self._buf = ffi.from_buffer(self._data)
+        self._asset = ffi.new("mcd_asset*")
+        flags = VALIDATE_SKIP_CHECKSUM if skip_checksum else 0
+        _check(lib.mcd_open(self._buf, len(self._data), flags, ffi.NULL, 0, self._asset), "mcd_open")
+        size = lib.mcd_scratch_size(self._asset)
+        # 16-byte alignment: allocate slack and offset into it.
+        self._scratch_mem = ffi.new("uint8_t[]", size + 16)
+        addr = int(ffi.cast("uintptr_t", self._scratch_mem))
+        self._scratch = self._scratch_mem + ((-addr) % 16)
+        _check(lib.mcd_scratch_init(self._asset, self._scratch, size), "mcd_scratch_init")
+        self.clips = [self._clip_info(i) for i in range(lib.mcd_clip_count(self._asset))]
+
+    @property
+    def size(self) -> int:
+        return len(self._data)
+
+    @property
+    def scratch_size(self) -> int:
+        return int(lib.mcd_scratch_size(self._asset))
+
+    @property
+    def skeleton_count(self) -> int:
+        return int(lib.mcd_skeleton_count(self._asset))
+
+    def _clip_info(self, i: int) -> ClipInfo:
+        info = ffi.new("mcd_clip_info*")
+        _check(lib.mcd_get_clip_info(self._asset, i, info), "mcd_get_clip_info")
+        return ClipInfo(
+            i,
+            ffi.string(info.name).decode("utf-8"),
+            info.skeleton,
+            info.codec,
+            info.frame_count,
+            info.frame_rate,
+            info.duration,
+            info.node_count,
+        )
+
+    def clip_index(self, clip: int | str) -> int:
+        """Index of a clip given by index or name."""
+        if isinstance(clip, str):
+            out = ffi.new("uint32_t*")
+            _check(lib.mcd_find_clip(self._asset, clip.encode("utf-8"), out), f"clip {clip!r}")
+            return int(out[0])
+        return int(clip)
+
+    def skeleton_info(self, skeleton: int) -> tuple[int, float]:
+        """(node_count, cm_per_unit) of a skeleton."""
+        info = ffi.new("mcd_skeleton_info*")
+        _check(lib.mcd_get_skeleton_info(self._asset, skeleton, info), "mcd_get_skeleton_info")
+        return int(info.node_count), float(info.cm_per_unit)
+
+    def nodes(self, skeleton: int) -> list[NodeInfo]:
+        count, _ = self.skeleton_info(skeleton)
+        out = []
+        info = ffi.new("mcd_node_info*")
+        for i in range(count):
+            _check(lib.mcd_get_node_info(self._asset, skeleton, i, info), "mcd_get_node_info")
+            out.append(
+                NodeInfo(
+                    ffi.string(info.name).decode("utf-8"),
+                    int(info.parent),
+                    bool(info.is_end_site),
+                    tuple(float(info.rest_offset[k]) for k in range(3)),
+                    tuple(int(info.channels[k]) for k in range(info.channel_count)),
+                )
+            )
+        return out
+
+    def sample(self, clip: int | str, time: float, flags: int = 0) -> np.ndarray:
+        """One pose: ``(node_count, 7)`` float32 rows ``qx qy qz qw tx ty tz``."""
+        index = self.clip_index(clip)
+        nodes = self.clips[index].node_count if 0 <= index < len(self.clips) else 1
+        out = np.empty((nodes, 7), dtype=np.float32)
+        _check(
+            lib.mcd_sample(
+                self._asset, index, float(time), flags,
+                ffi.cast("mcd_transform*", ffi.from_buffer(out)), nodes, self._scratch,
+            ),
+            "mcd_sample",
+        )
+        return out
+
+    def sample_times(self, clip: int | str, times: np.ndarray, flags: int = 0) -> np.ndarray:
+        """Poses at many times, in order: ``(len(times), node_count, 7)`` float32."""
+        index = self.clip_index(clip)
+        if not 0 <= index < len(self.clips):
+            raise RuntimeResultError(lib.MCD_ERROR_OUT_OF_RANGE, "mcd_sample")
+        nodes = self.clips[index].node_count
+        t = np.ascontiguousarray(times, dtype=np.float32)
+        out = np.empty((len(t), nodes, 7), dtype=np.float32)
+        code = lib.mcdpy_sample_many(
+            self._asset, index, ffi.cast("float*", ffi.from_buffer(t)), len(t), flags,
+            ffi.cast("mcd_transform*", ffi.from_buffer(out)), nodes, self._scratch,
+        )
+        _check(code, "mcd_sample")
+        return out
+
+    def sample_frames(
+        self, clip: int | str, frames: np.ndarray | None = None, world: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations ``(F, N, 4)`` and translations ``(F, N, 3)`` at integer frames
+        (all frames by default), local or world, as float64 arrays."""
+        info = self.clips[self.clip_index(clip)]
+        if frames is None:
+            frames = np.arange(info.frame_count)
+        times = np.asarray(frames, dtype=np.float64) / info.frame_rate
+        poses = self.sample_times(info.index, times, SAMPLE_WORLD if world else 0)
+        return poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)

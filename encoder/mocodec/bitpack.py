@@ -1,0 +1,43 @@
+"""Bit packing, least significant bit first (docs/FORMAT.md: bit i is bit i % 8 of byte i // 8)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+class BitWriter:
+    """Collects (value, width) fields, then packs them all at once with numpy."""
+
+    def __init__(self) -> None:
+        self._values: list[np.ndarray] = []
+        self._widths: list[np.ndarray] = []
+        self.bit_length = 0
+
+    def write(self, values: np.ndarray | int, widths: np.ndarray | int) -> None:
+        """Append fields; ``values`` and ``widths`` broadcast together (widths 0 ... 32)."""
+        v, w = np.broadcast_arrays(np.atleast_1d(np.asarray(values, dtype=np.uint64)),
+                                   np.atleast_1d(np.asarray(widths, dtype=np.int64)))
+        if v.size == 0:
+            return
+        if np.any(w < 0) or np.any(w > 32):
+            raise ValueError("field widths must be 0 ... 32")
+        if np.any(v >> w.astype(np.uint64) != 0):
+            raise ValueError("a value does not fit its field width")
+        self._values.append(v.ravel().copy())
+        self._widths.append(w.ravel().copy())
+        self.bit_length += int(w.sum())
+
+    def getvalue(self, tail_bytes: int = 0) -> bytes:
+        """The packed bytes, then ``tail_bytes`` zero bytes."""
+        nbytes = (self.bit_length + 7) // 8 + tail_bytes
+        if not self._values:
+            return bytes(nbytes)
+        values = np.concatenate(self._values)
+        widths = np.concatenate(self._widths)
+        starts = np.concatenate(([0], np.cumsum(widths)[:-1]))
+        # One entry per bit: which field, which bit of it.
+        field = np.repeat(np.arange(len(widths)), widths)
+        bit_in_field = np.arange(len(field)) - np.repeat(starts, widths)
+        bits = ((values[field] >> bit_in_field.astype(np.uint64)) & np.uint64(1)).astype(np.uint8)
+        out = np.zeros(nbytes * 8, dtype=np.uint8)
+        out[: len(bits)] = bits
+        return np.packbits(out, bitorder="little").tobytes()

@@ -1,0 +1,562 @@
+"""Reading and writing BVH motion files.
+
+The reader accepts every layout BVH allows (any channel and rotation order, position channels on
+any joint, several roots, ``CHANNELS 0``, CRLF, tabs) and turns bad input into a
+:class:`BVHError` that names the file, the 1-based line and the fault. The ``MOTION`` block is
+converted in one pass (split, count per line, one float conversion); lines are only scanned one
+by one to locate an error.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton
+
+__all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
+
+_FRAMES_RE = re.compile(r"Frames\s*:\s*(.*)")
+_FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(.*)")
+
+
+class BVHError(ValueError):
+    """A BVH file that cannot be read; ``str(err)`` is ``"{path}:{line}: {message}"``.
+
+    Attributes
+    ----------
+    path : str or None
+        The file, when known.
+    line : int or None
+        1-based line number of the fault, when it has one.
+    message : str
+        What is wrong.
+    """
+
+    def __init__(self, message: str, path: str | None = None, line: int | None = None) -> None:
+        self.message = message
+        self.path = path
+        self.line = line
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = [str(part) for part in (self.path, self.line) if part is not None]
+        return ": ".join([":".join(where), self.message]) if where else self.message
+
+    def __reduce__(self):  # keep pickling (multiprocessing) working with the extra fields
+        return (type(self), (self.message, self.path, self.line))
+
+
+# ------------------------------------------------------------------------------- reading
+def read_bvh(path: str | os.PathLike) -> Motion:
+    """Read a BVH file; the clip is named after the file stem."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
+    return parse_bvh(data, path=str(path), name=path.stem)
+
+
+def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = None) -> Motion:
+    """Parse BVH text (or UTF-8 bytes) into a :class:`Motion`.
+
+    Parameters
+    ----------
+    text : str or bytes
+        File contents.
+    path : str, optional
+        Used in error messages, and for the clip name when ``name`` is not given.
+    name : str, optional
+        Clip name; defaults to the stem of ``path``, else ``"clip"``.
+
+    Raises
+    ------
+    BVHError
+        With the line number and the fault, for any malformed input.
+    """
+    if isinstance(text, (bytes, bytearray, memoryview)):
+        text = _decode(bytes(text), path)
+    if name is None:
+        name = Path(path).stem if path else "clip"
+    # Only \n and \r end lines (str.splitlines would also split on form feeds and the like,
+    # and the line numbers would no longer match an editor's).
+    text = text.replace("\r\n", "\n").replace("\r", "\n").removeprefix("\ufeff")
+    nul = text.find("\x00")
+    if nul >= 0:
+        raise BVHError("binary data (NUL character); not a BVH text file", path,
+                       text.count("\n", 0, nul) + 1)
+    lines = text.split("\n")
+    if len(lines) > 1 and not lines[-1]:
+        lines.pop()  # the final newline ends the last line; it does not start another
+    hierarchy = _HierarchyParser(lines, path)
+    skeleton, motion_line = hierarchy.parse()
+    frames, frame_time, data_start = _parse_motion_header(lines, motion_line, path)
+    channels = _parse_frames(lines, data_start, frames, skeleton.channel_count, path)
+    return Motion.from_channels(skeleton, channels, frame_time, name)
+
+
+def _decode(data: bytes, path: str | None) -> str:
+    """UTF-8 text of ``data`` (a BOM is dropped); undecodable bytes become a BVHError."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        bad = data[exc.start]
+        raise BVHError(
+            f"not UTF-8 text (byte 0x{bad:02x} at offset {exc.start}); binary or wrongly "
+            "encoded file", path, line) from None
+
+
+@dataclass
+class _Node:
+    """A joint or End Site while the hierarchy is being read."""
+
+    name: str
+    parent: int
+    line: int
+    end_site: bool
+    offset: tuple[float, float, float] | None = None
+    channels: tuple[int, ...] | None = None
+    children: int = 0
+
+
+@dataclass
+class _HierarchyParser:
+    """Line-oriented reader of the HIERARCHY section.
+
+    Each non-blank line is one statement; ``{`` may also end a ROOT/JOINT/End Site line.
+    """
+
+    lines: list[str]
+    path: str | None
+    nodes: list[_Node] = field(default_factory=list)
+    stack: list[int] = field(default_factory=list)  # open nodes (their '{' was read)
+    pending: int | None = None  # a node whose header was read but not yet its '{'
+    joint_lines: dict[str, int] = field(default_factory=dict)  # joint name -> its line
+
+    def error(self, line: int, message: str) -> BVHError:
+        return BVHError(message, self.path, line)
+
+    def parse(self) -> tuple[Skeleton, int]:
+        """The skeleton and the index of the MOTION line."""
+        k = self._first_statement()
+        for k in range(k + 1, len(self.lines)):
+            tokens = self.lines[k].split()
+            if not tokens:
+                continue
+            if tokens[0] == "MOTION":
+                self._finish_hierarchy(k + 1, tokens)
+                return self._skeleton(), k
+            self._statement(k + 1, tokens)
+        last = len(self.lines)
+        open_node = self._innermost()
+        if open_node is not None:
+            raise self.error(last, f"unexpected end of file inside {self._describe(open_node)} "
+                                   f"(opened on line {open_node.line}); unbalanced braces?")
+        raise self.error(last, "missing MOTION section (unexpected end of file)")
+
+    def _first_statement(self) -> int:
+        for k, line in enumerate(self.lines):
+            tokens = line.split()
+            if not tokens:
+                continue
+            if tokens != ["HIERARCHY"]:
+                raise self.error(k + 1, f"expected HIERARCHY, found {line.strip()[:40]!r}")
+            return k
+        raise BVHError("empty file", self.path, 1 if self.lines else None)
+
+    def _statement(self, line: int, tokens: list[str]) -> None:
+        if self.pending is not None and tokens[0] != "{":
+            node = self.nodes[self.pending]
+            raise self.error(line, f"expected '{{' after {self._describe(node)}, "
+                                   f"found {tokens[0]!r}")
+        head = tokens[0]
+        if all(t in ("{", "}") for t in tokens):
+            for t in tokens:
+                if t == "{":
+                    self._open(line)
+                else:
+                    self._close(line)
+        elif head in ("ROOT", "JOINT"):
+            self._joint(line, tokens)
+        elif head == "End" and len(tokens) >= 2 and tokens[1].rstrip("{") in ("Site", "site"):
+            self._end_site(line, tokens)
+        elif head == "OFFSET":
+            self._offset(line, tokens)
+        elif head == "CHANNELS":
+            self._channels(line, tokens)
+        else:
+            raise self.error(line, f"unexpected {head!r} in HIERARCHY")
+
+    def _header_brace(self, tokens: list[str]) -> tuple[list[str], bool]:
+        """Split a trailing ``{`` (separate or glued to the name) off a header line."""
+        if tokens[-1] == "{":
+            return tokens[:-1], True
+        if tokens[-1].endswith("{"):
+            return tokens[:-1] + [tokens[-1][:-1]], True
+        return tokens, False
+
+    def _add(self, node: _Node, brace: bool) -> None:
+        self.nodes.append(node)
+        if node.parent >= 0:
+            self.nodes[node.parent].children += 1
+        self.pending = len(self.nodes) - 1
+        if brace:
+            self._open(node.line)
+
+    def _joint(self, line: int, tokens: list[str]) -> None:
+        tokens, brace = self._header_brace(tokens)
+        keyword = tokens[0]
+        if len(tokens) < 2:
+            raise self.error(line, f"{keyword} without a name")
+        name = " ".join(tokens[1:])
+        if keyword == "ROOT" and self.stack:
+            raise self.error(line, f"ROOT {name!r} inside {self._describe(self._top())}; "
+                                   "a '}' is missing?")
+        if keyword == "JOINT":
+            if not self.stack:
+                raise self.error(line, f"JOINT {name!r} outside any ROOT")
+            if self._top().end_site:
+                raise self.error(line, f"End Site (line {self._top().line}) cannot have "
+                                       f"children (JOINT {name!r})")
+        if name in self.joint_lines:
+            raise self.error(line, f"duplicate joint name {name!r} "
+                                   f"(first on line {self.joint_lines[name]})")
+        self.joint_lines[name] = line
+        parent = self.stack[-1] if self.stack else -1
+        self._add(_Node(name, parent, line, end_site=False), brace)
+
+    def _end_site(self, line: int, tokens: list[str]) -> None:
+        tokens, brace = self._header_brace(tokens)
+        if len(tokens) > 2:
+            raise self.error(line, f"unexpected {' '.join(tokens[2:])!r} after End Site")
+        if not self.stack:
+            raise self.error(line, "End Site outside any joint")
+        if self._top().end_site:
+            raise self.error(line, f"End Site (line {self._top().line}) cannot have children")
+        # Named after the hierarchy is complete, so a later joint cannot collide with it.
+        self._add(_Node("", self.stack[-1], line, end_site=True), brace)
+
+    def _open(self, line: int) -> None:
+        if self.pending is None:
+            raise self.error(line, "unexpected '{' (no ROOT, JOINT or End Site before it)")
+        self.stack.append(self.pending)
+        self.pending = None
+
+    def _close(self, line: int) -> None:
+        if not self.stack:
+            raise self.error(line, "unmatched '}'")
+        node = self.nodes[self.stack.pop()]
+        if node.offset is None:
+            raise self.error(line, f"{self._describe(node)} (line {node.line}) has no OFFSET")
+
+    def _offset(self, line: int, tokens: list[str]) -> None:
+        node = self._current(line, "OFFSET")
+        if node.offset is not None:
+            raise self.error(line, f"second OFFSET in {self._describe(node)}")
+        if len(tokens) != 4:
+            raise self.error(line, f"OFFSET needs 3 numbers, got {len(tokens) - 1}")
+        for t in tokens[1:]:
+            if not _is_number(t):
+                raise self.error(line, f"OFFSET value {t!r} is not a number")
+            if not np.isfinite(float(t)):
+                raise self.error(line, f"OFFSET value {t!r} is not finite")
+        node.offset = (float(tokens[1]), float(tokens[2]), float(tokens[3]))
+
+    def _channels(self, line: int, tokens: list[str]) -> None:
+        node = self._current(line, "CHANNELS")
+        if node.end_site:
+            raise self.error(line, f"End Site (line {node.line}) cannot have channels")
+        if node.channels is not None:
+            raise self.error(line, f"second CHANNELS in {self._describe(node)}")
+        if node.children:
+            raise self.error(line, f"CHANNELS of {self._describe(node)} must come before "
+                                   "its child joints")
+        if len(tokens) < 2 or not tokens[1].isdigit():
+            found = repr(tokens[1]) if len(tokens) > 1 else "nothing"
+            raise self.error(line, f"CHANNELS needs a channel count, found {found}")
+        count = int(tokens[1])
+        names = tokens[2:]
+        if count != len(names):
+            raise self.error(line, f"CHANNELS count says {count} but {len(names)} channel "
+                                   f"names follow")
+        codes = []
+        for ch in names:
+            if ch not in CHANNEL_CODES:
+                raise self.error(line, f"unknown channel {ch!r} (expected one of "
+                                       f"{', '.join(CHANNEL_NAMES)})")
+            if CHANNEL_CODES[ch] in codes:
+                raise self.error(line, f"duplicate channel {ch!r} in {self._describe(node)}")
+            codes.append(CHANNEL_CODES[ch])
+        node.channels = tuple(codes)
+
+    def _current(self, line: int, keyword: str) -> _Node:
+        if not self.stack:
+            raise self.error(line, f"{keyword} outside any joint")
+        return self._top()
+
+    def _top(self) -> _Node:
+        return self.nodes[self.stack[-1]]
+
+    def _innermost(self) -> _Node | None:
+        """The node still waiting for its '{' or '}', if any."""
+        if self.pending is not None:
+            return self.nodes[self.pending]
+        return self.nodes[self.stack[-1]] if self.stack else None
+
+    def _finish_hierarchy(self, line: int, tokens: list[str]) -> None:
+        if len(tokens) > 1:
+            raise self.error(line, f"unexpected {' '.join(tokens[1:])!r} after MOTION")
+        node = self._innermost()
+        if node is not None:
+            raise self.error(line, f"MOTION before the end of {self._describe(node)} "
+                                   f"(opened on line {node.line}); unbalanced braces")
+        if not self.nodes:
+            raise self.error(line, "HIERARCHY has no ROOT")
+
+    @staticmethod
+    def _describe(node: _Node) -> str:
+        if node.end_site:
+            return "End Site"
+        return f"{'ROOT' if node.parent < 0 else 'JOINT'} {node.name!r}"
+
+    def _skeleton(self) -> Skeleton:
+        names = _end_site_names(self.nodes)
+        skeleton = Skeleton(
+            names=names,
+            parents=np.array([n.parent for n in self.nodes], dtype=np.int64),
+            offsets=np.array([n.offset for n in self.nodes], dtype=np.float64).reshape(-1, 3),
+            channels=[n.channels or () for n in self.nodes],
+            is_end_site=np.array([n.end_site for n in self.nodes], dtype=bool),
+        )
+        try:
+            skeleton.validate()
+        except MotionError as exc:  # the parser should make this unreachable
+            raise BVHError(f"invalid skeleton: {exc}", self.path) from exc
+        return skeleton
+
+
+def _end_site_names(nodes: list[_Node]) -> list[str]:
+    """Node names with End Sites called ``<parent>_End`` (``_End2``... on a collision)."""
+    used = {n.name for n in nodes if not n.end_site}
+    names = []
+    for n in nodes:
+        if n.end_site:
+            base = f"{nodes[n.parent].name}_End"
+            name, k = base, 1
+            while name in used:
+                k += 1
+                name = f"{base}{k}"
+            used.add(name)
+            names.append(name)
+        else:
+            names.append(n.name)
+    return names
+
+
+def _next_statement(lines: list[str], start: int) -> int:
+    """Index of the first non-blank line at or after ``start`` (``len(lines)`` if none)."""
+    k = start
+    while k < len(lines) and not lines[k].strip():
+        k += 1
+    return k
+
+
+def _parse_motion_header(lines: list[str], motion_line: int,
+                         path: str | None) -> tuple[int, float, int]:
+    """``Frames:`` and ``Frame Time:`` after the MOTION line: (frames, frame time, index of
+    the first frame line)."""
+    k = _next_statement(lines, motion_line + 1)
+    match = _FRAMES_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
+    if match is None:
+        raise BVHError("missing 'Frames:' line after MOTION", path, min(k + 1, len(lines)))
+    try:
+        frames = int(match.group(1))
+    except ValueError:
+        raise BVHError(f"'Frames:' needs a whole number, got {match.group(1)!r}", path,
+                       k + 1) from None
+    if frames <= 0:
+        raise BVHError(f"'Frames: {frames}': a clip needs at least one frame", path, k + 1)
+    k = _next_statement(lines, k + 1)
+    match = _FRAME_TIME_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
+    if match is None:
+        raise BVHError("missing 'Frame Time:' line after 'Frames:'", path,
+                       min(k + 1, len(lines)))
+    try:
+        frame_time = float(match.group(1))
+    except ValueError:
+        raise BVHError(f"'Frame Time:' needs a number of seconds, got {match.group(1)!r}",
+                       path, k + 1) from None
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise BVHError(f"'Frame Time: {match.group(1)}' must be a positive number of seconds",
+                       path, k + 1)
+    return frames, frame_time, k + 1
+
+
+def _parse_frames(lines: list[str], start: int, frames: int, width: int,
+                  path: str | None) -> np.ndarray:
+    """The ``(frames, width)`` channel values from the frame lines from ``start`` on."""
+    rows_at = [k for k in range(start, len(lines)) if lines[k] and not lines[k].isspace()]
+    if width == 0:
+        # A hierarchy without channels has empty frame lines; anything else is an error.
+        if rows_at:
+            raise BVHError("frame line has values but the hierarchy has no channels", path,
+                           rows_at[0] + 1)
+        return np.zeros((frames, 0))
+    rows = [lines[k].split() for k in rows_at[:frames]]
+    counts = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+    bad = np.flatnonzero(counts != width)
+    if bad.size:
+        i = int(bad[0])
+        hint = ("; the file may be truncated"
+                if i == len(rows_at) - 1 and counts[i] < width else "")
+        raise BVHError(f"frame {i + 1} of {frames}: expected {width} values, got "
+                       f"{counts[i]}{hint}", path, rows_at[i] + 1)
+    if len(rows_at) < frames:
+        after = rows_at[-1] + 2 if rows_at else start + 1
+        raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {len(rows_at)} frame "
+                       "lines", path, after)
+    if len(rows_at) > frames:
+        raise BVHError(f"more frame lines than 'Frames: {frames}' (extra line with "
+                       f"{len(lines[rows_at[frames]].split())} values)", path,
+                       rows_at[frames] + 1)
+    flat = itertools.chain.from_iterable(rows)
+    try:
+        # float() also takes '1_000'; no BVH writer emits that, so treat it as garbage.
+        if any("_" in lines[k] for k in rows_at):
+            raise ValueError
+        values = np.fromiter(map(float, flat), dtype=np.float64, count=frames * width)
+    except ValueError:
+        # The slow scan runs only to say where the bad value is.
+        i, j = next((i, j) for i, row in enumerate(rows)
+                    for j, token in enumerate(row) if not _is_number(token))
+        raise BVHError(f"frame {i + 1} of {frames}, value {j + 1}: {rows[i][j]!r} is not a "
+                       "number", path, rows_at[i] + 1) from None
+    values = values.reshape(frames, width)
+    finite = np.isfinite(values)
+    if not finite.all():
+        i, j = (int(x) for x in np.argwhere(~finite)[0])
+        raise BVHError(f"frame {i + 1} of {frames}, value {j + 1}: {rows[i][j]!r} is not "
+                       "finite", path, rows_at[i] + 1)
+    return values
+
+
+def _is_number(token: str) -> bool:
+    """True if ``token`` reads as a float (NaN and inf included; '1_0' excluded)."""
+    if "_" in token:
+        return False
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+# ------------------------------------------------------------------------------- writing
+def format_bvh(motion: Motion, precision: int = 6, reference: np.ndarray | None = None) -> str:
+    """BVH text for ``motion``: its hierarchy and ``motion.to_channels`` values.
+
+    Parameters
+    ----------
+    motion : Motion
+    precision : int
+        Decimals of the frame values. OFFSETs and the frame time are written exactly
+        (shortest text that reads back as the same float).
+    reference : (F, C) array, optional
+        Channel values whose 360-degree branches the Euler angles follow; defaults to
+        ``motion.source_channels`` when it matches the motion's shape.
+    """
+    if isinstance(precision, bool) or not isinstance(precision, (int, np.integer)) \
+            or not 0 <= precision <= 17:
+        raise ValueError(f"precision must be a whole number of decimals in 0..17, got "
+                         f"{precision!r}")
+    precision = int(precision)
+    motion.validate()
+    sk = motion.skeleton
+    shape = (motion.frame_count, sk.channel_count)
+    if reference is None and motion.source_channels is not None:
+        if np.shape(motion.source_channels) == shape:
+            reference = motion.source_channels
+    elif reference is not None and np.shape(reference) != shape:
+        raise ValueError(f"reference has shape {np.shape(reference)}, expected {shape}")
+    values = motion.to_channels(reference)
+    for i, name in enumerate(sk.names):
+        if not name.strip() or "\n" in name or "\r" in name:
+            raise ValueError(f"node name {name!r} cannot be written to BVH")
+        if sk.is_end_site[i] and sk.parents[i] < 0:
+            raise ValueError(f"end site {name!r} has no parent joint; BVH cannot hold it")
+
+    order, depth = _preorder(sk)
+    out = ["HIERARCHY"]
+    open_depths: list[int] = []
+    for i, d in zip(order, depth):
+        while open_depths and open_depths[-1] >= d:
+            out.append("\t" * open_depths.pop() + "}")
+        pad = "\t" * d
+        if sk.is_end_site[i]:
+            out.append(f"{pad}End Site")
+        else:
+            out.append(f"{pad}{'ROOT' if sk.parents[i] < 0 else 'JOINT'} {sk.names[i]}")
+        out.append(f"{pad}{{")
+        out.append(f"{pad}\tOFFSET " + " ".join(_exact(v) for v in sk.offsets[i]))
+        if not sk.is_end_site[i]:
+            names = " ".join(CHANNEL_NAMES[c] for c in sk.channels[i])
+            out.append(f"{pad}\tCHANNELS {len(sk.channels[i])}" + (f" {names}" if names else ""))
+        open_depths.append(d)
+    while open_depths:
+        out.append("\t" * open_depths.pop() + "}")
+    out += ["MOTION", f"Frames: {motion.frame_count}", f"Frame Time: {_exact(motion.frame_time)}"]
+
+    # Columns follow the order the nodes are written in (the file's own order when the
+    # skeleton came from a BVH file, where it is already depth-first).
+    starts = np.cumsum([0] + [len(c) for c in sk.channels])
+    columns = np.concatenate([np.arange(starts[i], starts[i + 1]) for i in order]
+                             ).astype(np.int64)
+    out.append(_format_rows(values[:, columns], precision))
+    return "\n".join(out) + "\n"
+
+
+def write_bvh(motion: Motion, path: str | os.PathLike, precision: int = 6,
+              reference: np.ndarray | None = None) -> None:
+    """Write ``motion`` to a BVH file (see :func:`format_bvh`)."""
+    text = format_bvh(motion, precision, reference)
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(text)
+
+
+def _preorder(sk: Skeleton) -> tuple[list[int], list[int]]:
+    """Nodes depth-first (children in index order) and their depths; iterative, so deep
+    chains do not hit the recursion limit."""
+    children: list[list[int]] = [[] for _ in range(sk.node_count)]
+    roots = []
+    for i, p in enumerate(sk.parents):
+        (children[p] if p >= 0 else roots).append(i)
+    order: list[int] = []
+    depth: list[int] = []
+    todo = [(r, 0) for r in reversed(roots)]
+    while todo:
+        i, d = todo.pop()
+        order.append(i)
+        depth.append(d)
+        todo.extend((c, d + 1) for c in reversed(children[i]))
+    return order, depth
+
+
+def _exact(x: float) -> str:
+    """Shortest positional text that reads back as exactly ``x``."""
+    return np.format_float_positional(float(x) + 0.0, trim="-")
+
+
+def _format_rows(values: np.ndarray, precision: int) -> str:
+    """Frame lines: values with ``precision`` decimals, space separated."""
+    if values.shape[1] == 0:
+        return "\n" * (values.shape[0] - 1)
+    # Rounding first turns tiny negatives into 0 rather than '-0.000'; + 0.0 drops -0.0.
+    rounded = np.round(values, precision) + 0.0
+    row = " ".join([f"%.{precision}f"] * values.shape[1])
+    return "\n".join(row % tuple(r) for r in rounded.tolist())

@@ -1,0 +1,210 @@
+"""Error and size metrics shared by every codec and benchmark.
+
+Errors are world-space distances between the original and the decoded position of every joint
+and end site on every frame, reported in centimetres and in % of skeleton height. The mean
+follows seed 000 eq. 25-26 (per-joint mean over frames, then mean over joints). ACL's
+virtual-vertex metric places three vertices at ``shell_cm`` along each node's local axes and
+measures how far they move. Sizes follow DESIGN.md's two conventions.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .motion import Motion, Skeleton
+from .rotations import quat_angle, quat_rotate
+
+ACL_BYTES_PER_BONE_SAMPLE = 40  # float32 quaternion + translation + scale per bone per sample
+
+
+@dataclass
+class ErrorReport:
+    """World-space position error of one decoded clip (or a whole set, see :func:`combine`).
+
+    All lengths in centimetres. ``per_node_*`` are indexed like the skeleton's nodes.
+    """
+
+    max_cm: float
+    p99_cm: float
+    mean_cm: float
+    height_cm: float
+    per_node_max_cm: np.ndarray
+    per_node_mean_cm: np.ndarray
+    worst_frame: int
+    worst_node: int
+    shell_max_cm: float
+    shell_mean_cm: float
+    angle_mean_deg: float
+    angle_max_deg: float
+    samples: int
+    errors_cm: np.ndarray = field(repr=False)
+    """(F, N) error of every node on every frame."""
+
+    @property
+    def max_pct_height(self) -> float:
+        return 100.0 * self.max_cm / self.height_cm
+
+    @property
+    def mean_pct_height(self) -> float:
+        return 100.0 * self.mean_cm / self.height_cm
+
+    def fraction_under(self, threshold_cm: float) -> float:
+        """Fraction of (frame, node) samples with error <= threshold."""
+        return float(np.mean(self.errors_cm <= threshold_cm))
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "max_cm": self.max_cm,
+            "p99_cm": self.p99_cm,
+            "mean_cm": self.mean_cm,
+            "max_pct_height": self.max_pct_height,
+            "mean_pct_height": self.mean_pct_height,
+            "shell_max_cm": self.shell_max_cm,
+            "shell_mean_cm": self.shell_mean_cm,
+            "angle_mean_deg": self.angle_mean_deg,
+            "angle_max_deg": self.angle_max_deg,
+            "height_cm": self.height_cm,
+        }
+
+
+@dataclass
+class ErrorMetric:
+    """How errors are measured: units, the shell distance of the virtual-vertex metric.
+
+    Parameters
+    ----------
+    cm_per_unit : float
+        Centimetres per file unit.
+    height_units : float
+        Skeleton height in file units, for the % of height figures.
+    shell_cm : float, default 3.0
+        Distance of ACL's virtual vertices from each node (ACL's default is 3 cm).
+    """
+
+    cm_per_unit: float
+    height_units: float
+    shell_cm: float = 3.0
+
+    def evaluate(
+        self,
+        skeleton: Skeleton,
+        original: tuple[np.ndarray, np.ndarray],
+        decoded: tuple[np.ndarray, np.ndarray],
+        original_local: np.ndarray | None = None,
+        decoded_local: np.ndarray | None = None,
+    ) -> ErrorReport:
+        """Compare world transforms ``(rotations (F,N,4), positions (F,N,3))``.
+
+        ``original_local`` / ``decoded_local`` (F, N, 4) local rotations give the angle error;
+        without them it is reported as NaN.
+        """
+        rot_o, pos_o = original
+        rot_d, pos_d = decoded
+        err = np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit
+        per_node_mean = err.mean(axis=0)
+        flat = int(np.argmax(err))
+        worst_frame, worst_node = divmod(flat, err.shape[1])
+        shell = self._shell_errors(rot_o, pos_o, rot_d, pos_d)
+        if original_local is not None and decoded_local is not None:
+            ang = np.degrees(quat_angle(original_local, decoded_local))
+            angle_mean, angle_max = float(ang.mean()), float(ang.max())
+        else:
+            angle_mean = angle_max = float("nan")
+        return ErrorReport(
+            max_cm=float(err.max()),
+            p99_cm=float(np.percentile(err, 99)),
+            mean_cm=float(per_node_mean.mean()),
+            height_cm=self.height_units * self.cm_per_unit,
+            per_node_max_cm=err.max(axis=0),
+            per_node_mean_cm=per_node_mean,
+            worst_frame=worst_frame,
+            worst_node=worst_node,
+            shell_max_cm=float(shell.max()),
+            shell_mean_cm=float(shell.mean()),
+            angle_mean_deg=angle_mean,
+            angle_max_deg=angle_max,
+            samples=int(err.size),
+            errors_cm=err,
+        )
+
+    def _shell_errors(self, rot_o, pos_o, rot_d, pos_d) -> np.ndarray:
+        """Per (frame, node), the largest displacement of the three virtual vertices."""
+        d = self.shell_cm / self.cm_per_unit
+        worst = np.zeros(pos_o.shape[:2])
+        for axis in range(3):
+            v = np.zeros(3)
+            v[axis] = d
+            a = pos_o + quat_rotate(rot_o, v)
+            b = pos_d + quat_rotate(rot_d, v)
+            worst = np.maximum(worst, np.linalg.norm(a - b, axis=-1))
+        return worst * self.cm_per_unit
+
+
+def combine(reports: list[ErrorReport]) -> dict[str, float]:
+    """Set-level figures over several clips: max of maxima, p99 over all samples, mean of
+    per-clip means weighted by samples."""
+    all_err = np.concatenate([r.errors_cm.ravel() for r in reports])
+    weights = np.array([r.samples for r in reports], dtype=np.float64)
+    return {
+        "max_cm": float(max(r.max_cm for r in reports)),
+        "p99_cm": float(np.percentile(all_err, 99)),
+        "mean_cm": float(np.average([r.mean_cm for r in reports], weights=weights)),
+        "shell_max_cm": float(max(r.shell_max_cm for r in reports)),
+        "max_pct_height": float(max(r.max_pct_height for r in reports)),
+    }
+
+
+@dataclass
+class SizeReport:
+    """Asset size against the raw sizes of DESIGN.md's two conventions."""
+
+    asset_bytes: int
+    raw_bvh_bytes: int
+    raw_acl_bytes: int
+    seconds: float
+
+    @property
+    def ratio_bvh(self) -> float:
+        """Raw BVH float32 channels / asset (seed 003's convention)."""
+        return self.raw_bvh_bytes / self.asset_bytes
+
+    @property
+    def ratio_acl(self) -> float:
+        """Raw 40 bytes per node per frame / asset (ACL's convention)."""
+        return self.raw_acl_bytes / self.asset_bytes
+
+    @property
+    def bytes_per_second(self) -> float:
+        return self.asset_bytes / self.seconds
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "asset_bytes": self.asset_bytes,
+            "raw_bvh_bytes": self.raw_bvh_bytes,
+            "raw_acl_bytes": self.raw_acl_bytes,
+            "ratio_bvh": self.ratio_bvh,
+            "ratio_acl": self.ratio_acl,
+            "bytes_per_second": self.bytes_per_second,
+            "seconds": self.seconds,
+        }
+
+
+def raw_bvh_bytes(motion: Motion) -> int:
+    """Every BVH channel of every frame as float32."""
+    return motion.skeleton.channel_count * motion.frame_count * 4
+
+
+def raw_acl_bytes(motion: Motion) -> int:
+    """ACL's convention: 40 bytes per node (joints and end sites) per frame."""
+    return motion.skeleton.node_count * motion.frame_count * ACL_BYTES_PER_BONE_SAMPLE
+
+
+def size_report(motions: list[Motion], asset_bytes: int) -> SizeReport:
+    """Sizes of an asset holding ``motions``; seconds = frames x frame time (ACL's count)."""
+    return SizeReport(
+        asset_bytes=asset_bytes,
+        raw_bvh_bytes=sum(raw_bvh_bytes(m) for m in motions),
+        raw_acl_bytes=sum(raw_acl_bytes(m) for m in motions),
+        seconds=sum(m.frame_count * m.frame_time for m in motions),
+    )

@@ -1,0 +1,297 @@
+"""The motion model every codec works on: a skeleton and its frames.
+
+A :class:`Skeleton` is a forest of nodes in parent-first order. Nodes are BVH joints and End
+Sites (``is_end_site``); each keeps its BVH channel layout so a clip can be written back as the
+BVH it came from. A :class:`Motion` holds, per frame and node, the local rotation as a unit
+quaternion (``x y z w``, sign-continuous over time) and the local translation (the rest offset,
+or the position channels where the node has them: BVH position channels replace the OFFSET).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from . import rotations
+
+CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
+CHANNEL_CODES = {name: code for code, name in enumerate(CHANNEL_NAMES)}
+
+
+class MotionError(ValueError):
+    """A skeleton or motion breaks an invariant of the model."""
+
+
+@dataclass
+class Skeleton:
+    """Joint hierarchy with rest offsets and BVH channel layout.
+
+    Attributes
+    ----------
+    names : list of str
+        Unique node names (End Sites get ``<parent>_End`` unless the file names them).
+    parents : (N,) int array
+        Parent index, -1 for roots; parents come before children.
+    offsets : (N, 3) float array
+        Rest offsets (BVH ``OFFSET``), file units.
+    channels : list of tuple of int
+        Per node, BVH channel codes in file order (see :data:`CHANNEL_NAMES`).
+    is_end_site : (N,) bool array
+    """
+
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channels: list[tuple[int, ...]]
+    is_end_site: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.parents = np.asarray(self.parents, dtype=np.int64)
+        self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
+        self.is_end_site = np.asarray(self.is_end_site, dtype=bool)
+        self.channels = [tuple(int(c) for c in ch) for ch in self.channels]
+
+    @property
+    def node_count(self) -> int:
+        return len(self.names)
+
+    @property
+    def channel_count(self) -> int:
+        return sum(len(c) for c in self.channels)
+
+    def rotation_order(self, node: int) -> str:
+        """Axes of the node's rotation channels in file order, e.g. ``"ZYX"`` ("" if none)."""
+        return "".join("XYZ"[c - 3] for c in self.channels[node] if c >= 3)
+
+    def position_axes(self, node: int) -> tuple[int, ...]:
+        """Axes (0, 1, 2) of the node's position channels in file order."""
+        return tuple(c for c in self.channels[node] if c < 3)
+
+    def children(self, node: int) -> list[int]:
+        return [int(i) for i in np.flatnonzero(self.parents == node)]
+
+    def descendants(self, node: int) -> list[int]:
+        """Indices of all nodes below ``node`` (not including it), parent-first."""
+        out: list[int] = []
+        inside = np.zeros(self.node_count, dtype=bool)
+        inside[node] = True
+        for i in range(node + 1, self.node_count):
+            p = self.parents[i]
+            if p >= 0 and inside[p]:
+                inside[i] = True
+                out.append(i)
+        return out
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"no node named {name!r}") from None
+
+    def validate(self) -> None:
+        """Raise :class:`MotionError` if the skeleton breaks an invariant."""
+        n = self.node_count
+        if n == 0:
+            raise MotionError("skeleton has no nodes")
+        if self.parents.shape != (n,) or self.offsets.shape != (n, 3):
+            raise MotionError("parents/offsets do not match the node count")
+        if len(self.channels) != n or self.is_end_site.shape != (n,):
+            raise MotionError("channels/is_end_site do not match the node count")
+        if len(set(self.names)) != n:
+            raise MotionError("node names are not unique")
+        if any(not name for name in self.names):
+            raise MotionError("empty node name")
+        for i, p in enumerate(self.parents):
+            if not (-1 <= p < i):
+                raise MotionError(f"node {self.names[i]!r}: parent {p} does not come before it")
+            if p >= 0 and self.is_end_site[p]:
+                raise MotionError(f"node {self.names[i]!r} hangs below an end site")
+        for i, ch in enumerate(self.channels):
+            if len(set(ch)) != len(ch) or any(not 0 <= c < 6 for c in ch):
+                raise MotionError(f"node {self.names[i]!r}: bad channel layout {ch}")
+            if self.is_end_site[i] and ch:
+                raise MotionError(f"end site {self.names[i]!r} has channels")
+        if not np.all(np.isfinite(self.offsets)):
+            raise MotionError("non-finite offset")
+
+    def same_layout(self, other: "Skeleton") -> bool:
+        """True when names, parents, channels and end sites match (offsets may differ)."""
+        return (
+            self.names == other.names
+            and np.array_equal(self.parents, other.parents)
+            and self.channels == other.channels
+            and np.array_equal(self.is_end_site, other.is_end_site)
+        )
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Skeleton):
+            return NotImplemented
+        return self.same_layout(other) and np.array_equal(self.offsets, other.offsets)
+
+
+@dataclass
+class Motion:
+    """A clip: skeleton, per-frame local rotations and translations, and its frame time.
+
+    Attributes
+    ----------
+    skeleton : Skeleton
+    rotations : (F, N, 4) float array
+        Local rotations, unit quaternions ``x y z w``, sign-continuous along frames.
+        Identity for end sites and nodes without rotation channels.
+    translations : (F, N, 3) float array
+        Local translations, file units: the rest offset, with the position channels
+        substituted on the axes the node has them.
+    frame_time : float
+        Seconds per frame (BVH ``Frame Time``).
+    name : str
+        Clip name (the file stem for files read from disk).
+    """
+
+    skeleton: Skeleton
+    rotations: np.ndarray
+    translations: np.ndarray
+    frame_time: float
+    name: str = "clip"
+    source_channels: np.ndarray | None = field(default=None, repr=False)
+    """The channel values as read (F, C), kept so a BVH can be written back exactly and so
+    decoded Euler angles can follow the original's 360-degree branch."""
+
+    def __post_init__(self) -> None:
+        self.rotations = np.asarray(self.rotations, dtype=np.float64)
+        self.translations = np.asarray(self.translations, dtype=np.float64)
+
+    @property
+    def frame_count(self) -> int:
+        return int(self.rotations.shape[0])
+
+    @property
+    def frame_rate(self) -> float:
+        return 1.0 / self.frame_time
+
+    @property
+    def duration(self) -> float:
+        return (self.frame_count - 1) * self.frame_time
+
+    def validate(self) -> None:
+        """Raise :class:`MotionError` if the motion breaks an invariant."""
+        self.skeleton.validate()
+        n = self.skeleton.node_count
+        if self.rotations.ndim != 3 or self.rotations.shape[1:] != (n, 4):
+            raise MotionError(f"rotations have shape {self.rotations.shape}, expected (F, {n}, 4)")
+        if self.translations.shape != self.rotations.shape[:2] + (3,):
+            raise MotionError("translations do not match rotations")
+        if self.frame_count < 1:
+            raise MotionError("motion has no frames")
+        if not (np.isfinite(self.frame_time) and self.frame_time > 0):
+            raise MotionError(f"frame time {self.frame_time} is not positive")
+        if not (np.all(np.isfinite(self.rotations)) and np.all(np.isfinite(self.translations))):
+            raise MotionError("non-finite values in the motion")
+        norms = np.linalg.norm(self.rotations, axis=-1)
+        if np.max(np.abs(norms - 1.0)) > 1e-6:
+            raise MotionError("rotations are not unit quaternions")
+
+    # ----------------------------------------------------------------- channels <-> model
+    @classmethod
+    def from_channels(
+        cls,
+        skeleton: Skeleton,
+        channels: np.ndarray,
+        frame_time: float,
+        name: str = "clip",
+    ) -> "Motion":
+        """Build a motion from BVH channel values ``(F, C)`` (degrees, file units)."""
+        channels = np.asarray(channels, dtype=np.float64)
+        frames = channels.shape[0]
+        n = skeleton.node_count
+        rot = np.zeros((frames, n, 4))
+        rot[..., 3] = 1.0
+        trans = np.broadcast_to(skeleton.offsets, (frames, n, 3)).copy()
+        col = 0
+        for i, ch in enumerate(skeleton.channels):
+            cols = np.arange(col, col + len(ch))
+            col += len(ch)
+            rot_cols = [c for c, code in zip(cols, ch) if code >= 3]
+            for c, code in zip(cols, ch):
+                if code < 3:
+                    trans[:, i, code] = channels[:, c]
+            if rot_cols:
+                rot[:, i] = rotations.euler_to_quat(
+                    channels[:, rot_cols], skeleton.rotation_order(i)
+                )
+        rot = rotations.quat_make_continuous(rot, axis=0)
+        return cls(skeleton, rot, trans, float(frame_time), name, source_channels=channels)
+
+    def to_channels(self, reference: np.ndarray | None = None) -> np.ndarray:
+        """BVH channel values ``(F, C)`` for this motion.
+
+        Euler angles are made continuous over frames; with ``reference`` (an ``(F, C)``
+        channel array, e.g. the original clip's) each angle is put on the reference's
+        360-degree branch instead, so a decoded clip reads like its source.
+        """
+        sk = self.skeleton
+        out = np.zeros((self.frame_count, sk.channel_count))
+        col = 0
+        for i, ch in enumerate(sk.channels):
+            cols = list(range(col, col + len(ch)))
+            col += len(ch)
+            for c, code in zip(cols, ch):
+                if code < 3:
+                    out[:, c] = self.translations[:, i, code]
+            rot_cols = [c for c, code in zip(cols, ch) if code >= 3]
+            if not rot_cols:
+                continue
+            order = sk.rotation_order(i)
+            angles = _euler_any_order(self.rotations[:, i], order)
+            if reference is not None and len(order) == 3:
+                angles = rotations.euler_nearest(angles, reference[:, rot_cols], order)
+            elif reference is not None:
+                angles = rotations.unwrap_euler(angles, reference[:, rot_cols])
+            else:
+                angles = rotations.unwrap_euler(angles)
+            out[:, rot_cols] = angles
+        return out
+
+    def slice(self, start: int, stop: int) -> "Motion":
+        """Frames ``[start, stop)`` as a new motion."""
+        src = None if self.source_channels is None else self.source_channels[start:stop]
+        return Motion(
+            self.skeleton,
+            self.rotations[start:stop],
+            self.translations[start:stop],
+            self.frame_time,
+            self.name,
+            source_channels=src,
+        )
+
+
+def _euler_any_order(q: np.ndarray, order: str) -> np.ndarray:
+    """Euler angles for one to three rotation channels (joints with fewer than three
+    rotation channels can only hold rotations about those axes)."""
+    if len(order) == 3:
+        return rotations.quat_to_euler(q, order)
+    if len(order) == 1:
+        axis = "XYZ".index(order)
+        # Rotation about one axis: angle = 2 atan2(q_axis, w).
+        return np.degrees(2.0 * np.arctan2(q[..., axis], q[..., 3]))[..., None]
+    # Two axes: complete the order with the missing axis, whose angle must be ~0.
+    missing = next(a for a in "XYZ" if a not in order)
+    full = rotations.quat_to_euler(q, order + missing)
+    # A second angle beyond +-90 comes back as the other triple (a+180, 180-b, ~180): switch
+    # back so the dropped third angle is ~0.
+    flip = np.abs(full[..., 2]) > 90.0
+    full[flip] = np.array([180.0, 180.0, 180.0]) + [1.0, -1.0, 1.0] * full[flip]
+    return full[..., :2]
+
+
+def concatenate_names(motions: Sequence[Motion]) -> list[str]:
+    """Unique clip names for a list of motions (``walk``, ``walk_2`` ...)."""
+    seen: dict[str, int] = {}
+    out = []
+    for m in motions:
+        base = m.name or "clip"
+        k = seen.get(base, 0)
+        seen[base] = k + 1
+        out.append(base if k == 0 else f"{base}_{k + 1}")
+    return out

@@ -1,0 +1,59 @@
+"""Range-aware uniform quantization (seed 003 §5.2, eq. 7-8), per curve component.
+
+Each component gets its own minimum and step; the number of bits follows from the range and
+the step, so small-range components (minor axes, quiet joints) cost few bits. Minimum and
+step are rounded to float32 first, because that is what the asset stores and the runtime uses.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MAX_BITS = 24
+
+
+@dataclass
+class Quantizer:
+    """``v = minimum + q * step`` per component, ``0 <= q < 2**bits``."""
+
+    minimum: np.ndarray  # (d,) float32-exact
+    step: np.ndarray     # (d,) float32-exact, 0 where the component is constant
+    bits: np.ndarray     # (d,) int
+
+    @classmethod
+    def for_range(cls, lo: np.ndarray, hi: np.ndarray, step: np.ndarray) -> "Quantizer":
+        """Quantizer covering ``[lo, hi]`` with at most ``step`` per level (bits = eq. 8 with
+        the maximum error = step / 2). Raises ValueError when more than 24 bits are needed."""
+        lo = np.asarray(lo, dtype=np.float64)
+        hi = np.asarray(hi, dtype=np.float64)
+        step = np.asarray(step, dtype=np.float64)
+        minimum = lo.astype(np.float32).astype(np.float64)
+        span = hi - minimum
+        levels = np.where(span > 0, np.ceil(span / step - 1e-9), 0).astype(np.int64)
+        bits = np.where(levels > 0, np.ceil(np.log2(levels + 1)), 0).astype(np.int64)
+        if np.any(bits > MAX_BITS):
+            raise ValueError(
+                f"range {span.max():.6g} needs {int(bits.max())} bits at step {step.min():.3g} "
+                f"(the format allows {MAX_BITS})"
+            )
+        st = np.where(levels > 0, span / np.maximum(levels, 1), 0.0)
+        st32 = st.astype(np.float32).astype(np.float64)
+        # float32 rounding may shrink the step: make sure the top level still reaches hi.
+        short = (levels > 0) & (minimum + levels * st32 < hi)
+        st32 = np.where(short, np.nextafter(st32.astype(np.float32), np.float32(np.inf)).astype(np.float64), st32)
+        return cls(minimum, st32, bits)
+
+    def encode(self, v: np.ndarray) -> np.ndarray:
+        """Integers ``q`` (K, d) for values ``v`` (K, d)."""
+        safe = np.where(self.step > 0, self.step, 1.0)
+        q = np.rint((np.asarray(v, dtype=np.float64) - self.minimum) / safe)
+        q = np.where(self.step > 0, q, 0)
+        return np.clip(q, 0, (1 << self.bits) - 1).astype(np.int64)
+
+    def decode(self, q: np.ndarray) -> np.ndarray:
+        """Values the runtime reconstructs (binary32 arithmetic, as the C code does)."""
+        return (self.minimum.astype(np.float32) + np.asarray(q).astype(np.float32) * self.step.astype(np.float32)).astype(np.float64)
+
+    def roundtrip(self, v: np.ndarray) -> np.ndarray:
+        return self.decode(self.encode(v))

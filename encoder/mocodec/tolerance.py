@@ -1,0 +1,162 @@
+"""The tolerance promise: per-node position tolerances, their split into per-track error
+budgets, and the repair step that tightens budgets where the runtime's check fails.
+
+The user promises a world-space position error (cm) for every joint and end site on every
+frame, optionally tighter for end effectors. A track (a node's rotation or translation curve)
+moves every point below it. Each point's tolerance is shared equally among the tracks on its
+chain, scaled by the distance the track's error is carried over (the lever arm), and a global
+scale ``k`` lets errors that do not add up worst-case use more of it; where the check through
+the runtime still fails, :func:`tighten` lowers the budgets of the tracks on the failing
+chains around the failing frames.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .motion import Skeleton
+
+EFFECTOR_PATTERN = re.compile(r"hand|foot|toe|head|wrist|ankle|finger|thumb", re.IGNORECASE)
+
+
+def effector_nodes(skeleton: Skeleton) -> np.ndarray:
+    """Boolean (N,): end sites and joints named like hands, feet, toes and heads."""
+    named = np.array([bool(EFFECTOR_PATTERN.search(n)) for n in skeleton.names])
+    return named | skeleton.is_end_site
+
+
+@dataclass
+class Tolerance:
+    """What the encoder promises, in centimetres.
+
+    Parameters
+    ----------
+    tolerance_cm : float
+        Max world-space position error of any joint or end site on any frame.
+    effector_tolerance_cm : float or None
+        A tighter bound for end effectors (hands, feet, head, end sites).
+    """
+
+    tolerance_cm: float
+    effector_tolerance_cm: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.tolerance_cm) and self.tolerance_cm > 0):
+            raise ValueError(f"tolerance must be a positive number of cm, got {self.tolerance_cm}")
+        e = self.effector_tolerance_cm
+        if e is not None and not (np.isfinite(e) and e > 0):
+            raise ValueError(f"effector tolerance must be a positive number of cm, got {e}")
+
+    def per_node_cm(self, skeleton: Skeleton) -> np.ndarray:
+        """Tolerance of every node (N,), cm."""
+        tol = np.full(skeleton.node_count, float(self.tolerance_cm))
+        if self.effector_tolerance_cm is not None:
+            eff = effector_nodes(skeleton)
+            tol[eff] = np.minimum(tol[eff], self.effector_tolerance_cm)
+        return tol
+
+
+def ancestors_matrix(skeleton: Skeleton) -> np.ndarray:
+    """``A[a, p]`` is True when ``a`` is ``p`` or one of its ancestors."""
+    n = skeleton.node_count
+    a = np.eye(n, dtype=bool)
+    for p in range(n):
+        q = skeleton.parents[p]
+        if q >= 0:
+            a[:, p] |= a[:, q]
+    return a
+
+
+@dataclass
+class TrackReach:
+    """Which points a track moves and how far its error is carried.
+
+    ``affects`` (T, N) bool, ``lever`` (T, N) distance in file units (0 where not affected),
+    ``is_rotation`` (T,) bool.
+    """
+
+    affects: np.ndarray
+    lever: np.ndarray
+    is_rotation: np.ndarray
+
+
+def track_reach(
+    skeleton: Skeleton,
+    positions: np.ndarray,
+    track_nodes: list[int],
+    track_is_rotation: list[bool],
+    shell_units: float,
+) -> TrackReach:
+    """Reach of each track. A rotation at node ``a`` moves ``a``'s strict descendants by
+    its angle error times their distance to ``a`` (max over frames); every rotation is also
+    held to a virtual vertex at ``shell_units`` (ACL's shell), so leaf joints keep a sane
+    orientation. A translation at ``a`` moves ``a`` and all its descendants one to one."""
+    anc = ancestors_matrix(skeleton)
+    t = len(track_nodes)
+    n = skeleton.node_count
+    affects = np.zeros((t, n), dtype=bool)
+    lever = np.zeros((t, n))
+    for i, (a, rot) in enumerate(zip(track_nodes, track_is_rotation)):
+        below = anc[a].copy()
+        if rot:
+            d = np.linalg.norm(positions[:, below] - positions[:, a:a + 1], axis=-1).max(axis=0)
+            lever[i, below] = np.maximum(d, shell_units)
+            affects[i, below] = True
+        else:
+            affects[i, below] = True
+            lever[i, below] = 1.0
+    return TrackReach(affects, lever, np.asarray(track_is_rotation, dtype=bool))
+
+
+def initial_budgets(reach: TrackReach, tolerance_units: np.ndarray, scale: float) -> np.ndarray:
+    """Budget per track (T,): angle in radians for rotations, length for translations.
+
+    Point ``p`` gives each of the ``D_p`` tracks on its chain an equal share
+    ``tolerance_p / D_p``, divided by the lever; a track takes the smallest share any of its
+    points gives it, times ``scale``.
+    """
+    chain_len = np.maximum(reach.affects.sum(axis=0), 1)  # D_p
+    share = tolerance_units / chain_len                   # (N,)
+    with np.errstate(divide="ignore"):
+        per_point = np.where(reach.affects, share[None, :] / np.where(reach.lever > 0, reach.lever, 1.0), np.inf)
+    return scale * per_point.min(axis=1)
+
+
+def tighten(
+    budgets: list[np.ndarray],
+    reach: TrackReach,
+    errors_units: np.ndarray,
+    tolerance_units: np.ndarray,
+    radius: int = 1,
+    factor: float = 0.7,
+) -> list[int]:
+    """Lower the per-frame budgets of every track on a failing chain, around failing frames.
+
+    ``errors_units`` (F, N) is the error measured through the runtime. Where it exceeds the
+    tolerance, the budget of each track that moves the failing point is multiplied by
+    ``min(factor, 0.95 * tolerance / error)`` on the failing frames and ``radius`` frames
+    around them. Returns the indices of the tracks whose budgets changed.
+    """
+    ratio = tolerance_units[None, :] / np.maximum(errors_units, 1e-30)  # < 1 where failing
+    failing = ratio < 1.0
+    changed = []
+    if not failing.any():
+        return changed
+    frames = errors_units.shape[0]
+    for t, budget in enumerate(budgets):
+        mask = failing & reach.affects[t][None, :]
+        rows = mask.any(axis=1)
+        if not rows.any():
+            continue
+        worst = np.where(mask, ratio, np.inf).min(axis=1)
+        mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
+        # Spread each failing frame's multiplier to its neighbours (smallest wins).
+        spread = mult.copy()
+        for r in range(1, radius + 1):
+            spread[r:] = np.minimum(spread[r:], mult[:-r])
+            spread[:-r] = np.minimum(spread[:-r], mult[r:])
+        budget *= spread[:frames]
+        changed.append(t)
+    return changed

@@ -1,0 +1,212 @@
+/*
+ * mocodec runtime: validate, open and sample compressed motion assets (.mcd).
+ *
+ * C99, libc and libm only. No global state, no allocation: the caller owns every buffer
+ * (the asset bytes, the mcd_asset struct, the scratch memory) and asks the library how much
+ * it needs. Every entry point that can fail returns an mcd_result. The asset format is
+ * specified in docs/FORMAT.md.
+ *
+ * Typical use:
+ *
+ *     mcd_asset asset;
+ *     if (mcd_open(bytes, size, 0, NULL, 0, &asset) != MCD_OK) ...;   // validates first
+ *     size_t n = mcd_scratch_size(&asset);
+ *     void* scratch = malloc(n);                // once per thread, not per frame
+ *     mcd_scratch_init(&asset, scratch, n);
+ *     mcd_transform pose[64];
+ *     mcd_sample(&asset, clip, t, MCD_SAMPLE_LOOP, pose, 64, scratch);
+ *
+ * Thread safety: an opened mcd_asset is read-only and may be shared by any number of
+ * threads; each thread needs its own scratch buffer.
+ */
+#ifndef MOCODEC_H
+#define MOCODEC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(_WIN32) && defined(MCD_BUILD_SHARED)
+#define MCD_API __declspec(dllexport)
+#elif defined(__GNUC__) && defined(MCD_BUILD_SHARED)
+#define MCD_API __attribute__((visibility("default")))
+#else
+#define MCD_API
+#endif
+
+/* Library version: major << 16 | minor << 8 | patch. */
+#define MCD_VERSION_MAJOR 0
+#define MCD_VERSION_MINOR 1
+#define MCD_VERSION_PATCH 0
+#define MCD_VERSION ((MCD_VERSION_MAJOR << 16) | (MCD_VERSION_MINOR << 8) | MCD_VERSION_PATCH)
+
+/* Asset format version this runtime reads (docs/FORMAT.md). */
+#define MCD_FORMAT_MAJOR 1
+#define MCD_FORMAT_MINOR 0
+
+/* Result codes. The values never change: the Python, C# and Godot bindings copy them. */
+typedef enum mcd_result {
+    MCD_OK = 0,
+    MCD_ERROR_INVALID_ARGUMENT = 1,  /* NULL pointer, NaN time, unknown flag bits */
+    MCD_ERROR_TRUNCATED = 2,         /* the buffer is shorter than the asset says */
+    MCD_ERROR_BAD_MAGIC = 3,         /* not a mocodec asset */
+    MCD_ERROR_VERSION_TOO_NEW = 4,   /* format major version newer than this runtime */
+    MCD_ERROR_VERSION_TOO_OLD = 5,   /* format major version older than this runtime reads */
+    MCD_ERROR_CHECKSUM = 6,          /* CRC-32 mismatch */
+    MCD_ERROR_MALFORMED = 7,         /* a structural rule of docs/FORMAT.md is broken */
+    MCD_ERROR_UNSUPPORTED = 8,       /* a codec or section version this runtime does not know */
+    MCD_ERROR_BUFFER_TOO_SMALL = 9,  /* output or scratch buffer smaller than needed */
+    MCD_ERROR_OUT_OF_RANGE = 10,     /* clip, skeleton or node index past the end */
+    MCD_ERROR_SCRATCH_MISMATCH = 11, /* scratch not initialised for this asset */
+    MCD_ERROR_TRAILING_DATA = 12,    /* the buffer is longer than the asset */
+    MCD_ERROR_NOT_FOUND = 13         /* no clip or node of that name */
+} mcd_result;
+
+/* mcd_validate / mcd_open flags. */
+#define MCD_VALIDATE_SKIP_CHECKSUM 0x1u /* structural checks only (still safe to sample) */
+
+/* mcd_sample flags. All zero: local transforms, clamp to the clip, cubic between frames. */
+#define MCD_SAMPLE_WORLD 0x1u   /* output model-space transforms instead of local ones */
+#define MCD_SAMPLE_LOOP 0x2u    /* wrap time into the clip instead of clamping */
+#define MCD_SAMPLE_NEAREST 0x4u /* round to the nearest frame instead of interpolating */
+
+/* Codec identifiers (clip directory). */
+typedef enum mcd_codec {
+    MCD_CODEC_SPLINE = 1,
+    MCD_CODEC_RMA = 2,
+    MCD_CODEC_IK_PREDICT = 3,
+    MCD_CODEC_FK_WAVELET = 4,
+    MCD_CODEC_NEURAL = 5
+} mcd_codec;
+
+/* BVH channel codes (skeleton channel layout). */
+typedef enum mcd_channel {
+    MCD_CHANNEL_XPOSITION = 0,
+    MCD_CHANNEL_YPOSITION = 1,
+    MCD_CHANNEL_ZPOSITION = 2,
+    MCD_CHANNEL_XROTATION = 3,
+    MCD_CHANNEL_YROTATION = 4,
+    MCD_CHANNEL_ZROTATION = 5
+} mcd_channel;
+
+/* One node's transform. Quaternion x y z w (unit), translation in the file's units. */
+typedef struct mcd_transform {
+    float rotation[4];
+    float translation[3];
+} mcd_transform;
+
+typedef struct mcd_clip_info {
+    const char* name;      /* NUL-terminated, points into the asset bytes */
+    uint32_t skeleton;     /* skeleton index */
+    uint32_t codec;        /* mcd_codec */
+    uint32_t frame_count;
+    float frame_rate;      /* frames per second */
+    float duration;        /* seconds, (frame_count - 1) / frame_rate */
+    uint32_t node_count;   /* transforms one sample writes */
+} mcd_clip_info;
+
+typedef struct mcd_skeleton_info {
+    uint32_t node_count;   /* joints and end sites */
+    float cm_per_unit;     /* centimetres per file unit */
+} mcd_skeleton_info;
+
+typedef struct mcd_node_info {
+    const char* name;        /* NUL-terminated, points into the asset bytes */
+    int32_t parent;          /* -1 for a root */
+    uint32_t is_end_site;    /* 1 for a BVH End Site, else 0 */
+    float rest_offset[3];    /* BVH OFFSET */
+    uint32_t channel_count;  /* 0 ... 6 */
+    uint8_t channels[6];     /* mcd_channel codes in file order */
+    uint8_t reserved[2];
+} mcd_node_info;
+
+/*
+ * An opened asset: offsets into the caller's bytes, filled by mcd_open. Treat the fields as
+ * private; use the functions below. Plain data: copy it, put it on the stack, share it.
+ */
+typedef struct mcd_asset {
+    const uint8_t* data;
+    size_t size;
+    uint32_t skeleton_count;
+    uint32_t clip_count;
+    uint32_t clip_records;      /* offset of the first clip record */
+    uint32_t clip_strings;      /* offset of the clip string block */
+    uint32_t clip_strings_size;
+    uint32_t max_nodes;         /* largest node_count of any skeleton */
+    uint32_t scratch_size;      /* bytes mcd_scratch_size returns */
+    uint32_t skeleton_offsets[16]; /* offsets of the first 16 SKEL sections */
+    uint32_t section_table;     /* offset of the section table */
+    uint32_t section_count;
+    uint32_t reserved[8];
+} mcd_asset;
+
+/* Runtime library version (MCD_VERSION of the build). Bindings check it at load time. */
+MCD_API uint32_t mcd_version(void);
+
+/* A short English description of a result code ("checksum mismatch"). Never NULL. */
+MCD_API const char* mcd_result_string(mcd_result result);
+
+/*
+ * Check that `data[0 .. size)` is a complete, well-formed asset this runtime can sample:
+ * header, checksum (unless MCD_VALIDATE_SKIP_CHECKSUM), section table, skeletons, clip
+ * directory and every codec payload. Safe on any bytes: never reads outside the buffer,
+ * never crashes. After it returns MCD_OK, sampling cannot read out of bounds and never
+ * produces a non-finite float. Cost: linear in the asset size.
+ */
+MCD_API mcd_result mcd_validate(const void* data, size_t size, uint32_t flags);
+
+/*
+ * Bytes of resident memory mcd_open needs for this asset (0 for every format 1.0 asset:
+ * they are sampled in place). Reads only the header and section table; fails like
+ * mcd_validate on a broken header.
+ */
+MCD_API mcd_result mcd_resident_size(const void* data, size_t size, size_t* out_size);
+
+/*
+ * Validate (see mcd_validate; `flags` as there) and open an asset in place. The bytes must
+ * stay alive and unchanged while the asset is used. `resident` may be NULL when
+ * mcd_resident_size gave 0. Does not allocate.
+ */
+MCD_API mcd_result mcd_open(const void* data, size_t size, uint32_t flags, void* resident,
+                            size_t resident_size, mcd_asset* out_asset);
+
+MCD_API uint32_t mcd_clip_count(const mcd_asset* asset);
+MCD_API uint32_t mcd_skeleton_count(const mcd_asset* asset);
+MCD_API mcd_result mcd_get_clip_info(const mcd_asset* asset, uint32_t clip, mcd_clip_info* out);
+/* Index of the clip called `name` (exact, case-sensitive) or MCD_ERROR_NOT_FOUND. */
+MCD_API mcd_result mcd_find_clip(const mcd_asset* asset, const char* name, uint32_t* out_clip);
+MCD_API mcd_result mcd_get_skeleton_info(const mcd_asset* asset, uint32_t skeleton,
+                                     mcd_skeleton_info* out);
+MCD_API mcd_result mcd_get_node_info(const mcd_asset* asset, uint32_t skeleton, uint32_t node,
+                                 mcd_node_info* out);
+
+/*
+ * Scratch memory one thread needs to sample any clip of the asset (a few KB): caches that
+ * make sequential playback cost O(1) per frame. Initialise it once with mcd_scratch_init;
+ * it may then be reused for any clip and time. The size is a multiple of 16.
+ */
+MCD_API size_t mcd_scratch_size(const mcd_asset* asset);
+MCD_API mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratch_size);
+
+/*
+ * Sample clip `clip` at `time_seconds` into `out_pose[0 .. node_count)` (node_count of the
+ * clip's skeleton; `pose_capacity` is the caller's array length). Local transforms unless
+ * MCD_SAMPLE_WORLD. Time is clamped to [0, duration] unless MCD_SAMPLE_LOOP; between frames
+ * the codec's curve is evaluated unless MCD_SAMPLE_NEAREST. Does not allocate; every output
+ * float is finite. Fails with MCD_ERROR_INVALID_ARGUMENT on a non-finite time or unknown
+ * flags, MCD_ERROR_OUT_OF_RANGE on a bad clip index, MCD_ERROR_BUFFER_TOO_SMALL when
+ * pose_capacity < node_count, MCD_ERROR_SCRATCH_MISMATCH when the scratch was initialised
+ * for another asset.
+ */
+MCD_API mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
+                              uint32_t flags, mcd_transform* out_pose, uint32_t pose_capacity,
+                              void* scratch);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MOCODEC_H */

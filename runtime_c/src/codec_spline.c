@@ -1,0 +1,539 @@
+/* Codec `spline`: per-track Catmull-Rom keys, bit-packed in blocks (docs/FORMAT.md, SPLN).
+ *
+ * Random access walks at most four blocks' headers (the block of x and its neighbours, for
+ * the keys around x). Sequential playback is O(1) per frame: each track keeps the four keys
+ * of its current interval, dequantised, and only re-locates when x leaves the interval. */
+#include <math.h>
+#include <string.h>
+
+#include "internal.h"
+
+#define PAYLOAD_HEADER 32u
+#define NODE_ENTRY 8u
+#define WALK_SLOTS 4u
+
+enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3 };
+
+/* ---------------------------------------------------------------- payload layout */
+typedef struct layout {
+    uint32_t frames, nodes, tracks, shift, block_len, blocks, constants, stream_size, desc_bytes;
+    const uint8_t *node_table, *consts, *descs, *block_table, *stream;
+} layout;
+
+/* Descriptor size by kind (docs/FORMAT.md); 0 for an unknown kind. */
+static uint32_t desc_size(uint32_t kind) {
+    return kind == KIND_MRP ? 36u : kind == KIND_TWIST ? 56u : kind == KIND_TRANSLATION ? 28u : 0u;
+}
+
+static uint32_t kind_dims(uint32_t kind) {
+    return kind == KIND_TWIST ? 4u : 3u;
+}
+
+static void read_layout(const uint8_t* p, layout* L) {
+    L->frames = mcd_rd_u32(p);
+    L->nodes = mcd_rd_u32(p + 4);
+    L->tracks = mcd_rd_u32(p + 8);
+    L->shift = p[12];
+    L->block_len = 1u << L->shift;
+    L->blocks = mcd_rd_u32(p + 16);
+    L->constants = mcd_rd_u32(p + 20);
+    L->stream_size = mcd_rd_u32(p + 24);
+    L->desc_bytes = mcd_rd_u32(p + 28);
+    L->node_table = p + PAYLOAD_HEADER;
+    L->consts = L->node_table + (size_t)L->nodes * NODE_ENTRY;
+    L->descs = L->consts + (size_t)L->constants * 4u;
+    L->block_table = L->descs + L->desc_bytes;
+    L->stream = L->block_table + (size_t)L->blocks * 4u;
+}
+
+static uint32_t block_start(const layout* L, uint32_t j) {
+    uint64_t s = (uint64_t)j << L->shift;
+    return s < L->frames - 1u ? (uint32_t)s : L->frames - 1u;
+}
+
+/* n extra keys take n offsets of `shift` bits, or a (B - 1)-bit mask when that is shorter. */
+static uint32_t time_bits(const layout* L, uint32_t n) {
+    return n * L->shift < L->block_len - 1u ? n * L->shift : L->block_len - 1u;
+}
+
+/* `n` <= 32 bits at bit position `pos`. The stream's 8-byte zero tail makes the load safe. */
+static uint32_t read_bits(const uint8_t* stream, uint64_t pos, uint32_t n) {
+    uint64_t w = mcd_rd_u64(stream + (size_t)(pos >> 3)) >> (pos & 7u);
+    return n >= 32u ? (uint32_t)w : (uint32_t)(w & ((1u << n) - 1u));
+}
+
+static uint64_t read_mask(const uint8_t* stream, uint64_t pos, uint32_t n) {
+    if (n <= 32u) return read_bits(stream, pos, n);
+    return (uint64_t)read_bits(stream, pos, 32u) | ((uint64_t)read_bits(stream, pos + 32u, n - 32u) << 32);
+}
+
+/* ---------------------------------------------------------------- validation */
+static int unit4(const uint8_t* p) {
+    float x = mcd_rd_f32(p), y = mcd_rd_f32(p + 4), z = mcd_rd_f32(p + 8), w = mcd_rd_f32(p + 12);
+    float n;
+    if (!mcd_finite(x) || !mcd_finite(y) || !mcd_finite(z) || !mcd_finite(w)) return 0;
+    n = x * x + y * y + z * z + w * w;
+    return n > 1.0f - 2e-5f && n < 1.0f + 2e-5f;
+}
+
+static int in_bounds(float v) {
+    return mcd_finite(v) && v <= MCD_MAX_ABS_VALUE && v >= -MCD_MAX_ABS_VALUE;
+}
+
+/* Check one descriptor of `avail` bytes; on success its kind and key bits are returned. */
+static mcd_result check_track(const uint8_t* t, uint32_t avail, uint32_t* out_size, uint8_t* out_kind,
+                              uint8_t* out_keybits) {
+    uint32_t kind, dims, size, head, c, keybits = 0;
+    if (avail < 4) return MCD_ERROR_MALFORMED;
+    kind = t[0];
+    size = desc_size(kind);
+    if (size == 0 || size > avail) return MCD_ERROR_MALFORMED;
+    dims = kind_dims(kind);
+    head = dims == 4u ? 8u : 4u;
+    if (dims == 4u && (t[5] || t[6] || t[7])) return MCD_ERROR_MALFORMED;
+    for (c = 0; c < dims; ++c) {
+        uint32_t bits = t[1 + c];
+        float mn = mcd_rd_f32(t + head + 4 * c), st = mcd_rd_f32(t + head + 4 * (dims + c));
+        if (bits > 24u || !in_bounds(mn) || !mcd_finite(st) || st < 0.0f) return MCD_ERROR_MALFORMED;
+        if (!in_bounds(mn + (float)((1u << bits) - 1u) * st)) return MCD_ERROR_MALFORMED;
+        keybits += bits;
+    }
+    if (kind != KIND_TRANSLATION) {
+        const uint8_t* r = t + head + 8u * dims;
+        if (mcd_rd_u16(r + 6) != 0) return MCD_ERROR_MALFORMED;
+        if (kind == KIND_TWIST) {
+            float ax = (float)(int16_t)mcd_rd_u16(r + 8), ay = (float)(int16_t)mcd_rd_u16(r + 10);
+            float az = (float)(int16_t)mcd_rd_u16(r + 12);
+            if (mcd_rd_u16(r + 14) != 0) return MCD_ERROR_MALFORMED;
+            if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
+        }
+    }
+    *out_size = size;
+    *out_kind = (uint8_t)kind;
+    *out_keybits = (uint8_t)keybits;
+    return MCD_OK;
+}
+
+/* Parse block j's structure (not its values) starting at bit `pos`; returns the end bit or
+ * UINT64_MAX when a rule is broken or it would read at or past `limit`. */
+static uint64_t check_block(const layout* L, const uint8_t* keybits, uint32_t j, uint64_t pos, uint64_t limit) {
+    uint32_t u, span = j + 1u < L->blocks ? block_start(L, j + 1u) - block_start(L, j) : 0u;
+    int last = j + 1u == L->blocks;
+    for (u = 0; u < L->tracks; ++u) {
+        uint32_t kb = keybits[u], n = 0;
+        if (!last) {
+            uint32_t tb, e, prev = 0;
+            if (pos + L->shift > limit) return UINT64_MAX;
+            n = read_bits(L->stream, pos, L->shift);
+            pos += L->shift;
+            if (n + 1u > span) return UINT64_MAX;
+            tb = time_bits(L, n);
+            if (pos + tb > limit) return UINT64_MAX;
+            if (n * L->shift < L->block_len - 1u) {
+                for (e = 0; e < n; ++e) {
+                    uint32_t off = read_bits(L->stream, pos + (uint64_t)e * L->shift, L->shift);
+                    if (off <= prev || off >= span) return UINT64_MAX;
+                    prev = off;
+                }
+            } else {
+                uint64_t mask = read_mask(L->stream, pos, tb);
+                uint32_t count = 0;
+                if (span - 1u < 64u && (mask >> (span - 1u)) != 0) return UINT64_MAX;
+                while (mask) {
+                    mask &= mask - 1u;
+                    count++;
+                }
+                if (count != n) return UINT64_MAX;
+            }
+            pos += tb;
+        }
+        pos += (uint64_t)(n + 1u) * kb;
+        if (pos > limit) return UINT64_MAX;
+    }
+    return pos;
+}
+
+static mcd_result spline_validate(const mcd_clip_view* v) {
+    const uint8_t* p = v->payload;
+    layout L;
+    uint8_t used[2 * MCD_MAX_NODES], kinds[2 * MCD_MAX_NODES], keybits[2 * MCD_MAX_NODES];
+    uint64_t total, pos, limit;
+    uint32_t i, j, off;
+    uint32_t frames, nodes, tracks, shift, blocks, constants, stream_size, desc_bytes;
+    if (v->payload_size < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
+    /* Check the counts before forming any pointer from them. */
+    frames = mcd_rd_u32(p);
+    nodes = mcd_rd_u32(p + 4);
+    tracks = mcd_rd_u32(p + 8);
+    shift = p[12];
+    blocks = mcd_rd_u32(p + 16);
+    constants = mcd_rd_u32(p + 20);
+    stream_size = mcd_rd_u32(p + 24);
+    desc_bytes = mcd_rd_u32(p + 28);
+    if (frames != v->frame_count || nodes != v->node_count) return MCD_ERROR_MALFORMED;
+    if (tracks > 2u * nodes || shift < 3u || shift > 6u) return MCD_ERROR_MALFORMED;
+    if (p[13] || p[14] || p[15]) return MCD_ERROR_MALFORMED;
+    if ((uint64_t)blocks != ((uint64_t)frames - 1u + (1u << shift) - 1u) / (1u << shift) + 1u) return MCD_ERROR_MALFORMED;
+    if (constants > 7u * nodes || stream_size < 8u) return MCD_ERROR_MALFORMED;
+    total = (uint64_t)PAYLOAD_HEADER + (uint64_t)nodes * NODE_ENTRY + (uint64_t)constants * 4u +
+            (uint64_t)desc_bytes + (uint64_t)blocks * 4u + stream_size;
+    if (total != v->payload_size) return MCD_ERROR_MALFORMED;
+    read_layout(p, &L);
+
+    for (i = 0; i < L.constants; ++i)
+        if (!in_bounds(mcd_rd_f32(L.consts + 4 * i))) return MCD_ERROR_MALFORMED;
+    for (i = 0, off = 0; i < L.tracks; ++i) {
+        uint32_t size;
+        mcd_result r = check_track(L.descs + off, L.desc_bytes - off, &size, &kinds[i], &keybits[i]);
+        if (r != MCD_OK) return r;
+        off += size;
+    }
+    if (off != L.desc_bytes) return MCD_ERROR_MALFORMED;
+    memset(used, 0, sizeof used);
+    for (i = 0; i < L.nodes; ++i) {
+        const uint8_t* e = L.node_table + (size_t)i * NODE_ENTRY;
+        uint32_t rm = e[0], tm = e[1], ri = mcd_rd_u16(e + 2), ti = mcd_rd_u16(e + 4);
+        if (mcd_rd_u16(e + 6) != 0) return MCD_ERROR_MALFORMED;
+        if (rm == 0) {
+            if (ri != 0) return MCD_ERROR_MALFORMED;
+        } else if (rm == 1) {
+            if (ri + 4u > L.constants || !unit4(L.consts + 4u * ri)) return MCD_ERROR_MALFORMED;
+        } else if (rm == 2) {
+            if (ri >= L.tracks || used[ri] || kinds[ri] == KIND_TRANSLATION) return MCD_ERROR_MALFORMED;
+            used[ri] = 1;
+        } else {
+            return MCD_ERROR_MALFORMED;
+        }
+        if (tm == 0) {
+            if (ti != 0) return MCD_ERROR_MALFORMED;
+        } else if (tm == 1) {
+            if (ti + 3u > L.constants) return MCD_ERROR_MALFORMED;
+        } else if (tm == 2) {
+            if (ti >= L.tracks || used[ti] || kinds[ti] != KIND_TRANSLATION) return MCD_ERROR_MALFORMED;
+            used[ti] = 1;
+        } else {
+            return MCD_ERROR_MALFORMED;
+        }
+    }
+    for (i = 0; i < L.tracks; ++i)
+        if (!used[i]) return MCD_ERROR_MALFORMED;
+
+    limit = ((uint64_t)L.stream_size - 8u) * 8u;
+    if (mcd_rd_u32(L.block_table) != 0) return MCD_ERROR_MALFORMED;
+    pos = 0;
+    for (j = 0; j < L.blocks; ++j) {
+        if (mcd_rd_u32(L.block_table + 4u * j) != pos) return MCD_ERROR_MALFORMED;
+        pos = check_block(&L, keybits, j, pos, limit);
+        if (pos == UINT64_MAX) return MCD_ERROR_MALFORMED;
+    }
+    /* Everything after the last block is zero, including the unused bits of its last byte. */
+    if ((pos & 7u) && (L.stream[pos >> 3] >> (pos & 7u)) != 0) return MCD_ERROR_MALFORMED;
+    for (i = (uint32_t)((pos + 7u) >> 3); i < L.stream_size; ++i)
+        if (L.stream[i] != 0) return MCD_ERROR_MALFORMED;
+    return MCD_OK;
+}
+
+/* ---------------------------------------------------------------- scratch */
+typedef struct track_state {
+    uint32_t kind, dims, keybits, valid;
+    uint32_t bits[4];
+    float minimum[4], step[4];
+    mcd_quat ref;
+    float axis[4];
+    float t[4];    /* frames of keys i-1, i, i+1, i+2 */
+    float v[4][4]; /* their values */
+} track_state;
+
+typedef struct node_plan {
+    mcd_transform base; /* constants and rest offsets resolved once per clip */
+    int32_t rot_track, trans_track;
+} node_plan;
+
+typedef struct walk_header {
+    uint32_t block, valid;
+} walk_header;
+
+typedef struct spline_state {
+    uint32_t tracks, nodes, pad0, pad1;
+} spline_state;
+
+/* Layout: spline_state | node_plan[N] | track_state[T] | WALK_SLOTS x (walk_header | u32 n[T] | u32 tpos[T] | u32 vpos[T]) */
+static size_t align16z(size_t x) {
+    return (x + 15u) & ~(size_t)15u;
+}
+
+static size_t walk_slot_size(uint32_t tracks) {
+    return align16z(sizeof(walk_header) + 3u * 4u * (size_t)tracks);
+}
+
+static size_t spline_scratch_size(const mcd_clip_view* v) {
+    uint32_t tracks = mcd_rd_u32(v->payload + 8), nodes = mcd_rd_u32(v->payload + 4);
+    return align16z(sizeof(spline_state)) + align16z(sizeof(node_plan) * nodes) +
+           align16z(sizeof(track_state) * tracks) + WALK_SLOTS * walk_slot_size(tracks);
+}
+
+typedef struct views {
+    spline_state* st;
+    node_plan* plans;
+    track_state* tracks;
+    uint8_t* walks;
+} views;
+
+static void scratch_views(void* scratch, uint32_t nodes, uint32_t tracks, views* s) {
+    uint8_t* b = (uint8_t*)scratch;
+    s->st = (spline_state*)b;
+    b += align16z(sizeof(spline_state));
+    s->plans = (node_plan*)b;
+    b += align16z(sizeof(node_plan) * nodes);
+    s->tracks = (track_state*)b;
+    b += align16z(sizeof(track_state) * tracks);
+    s->walks = b;
+}
+
+/* Block walk: per track, extra-key count and bit positions of its times and values. */
+typedef struct walk {
+    walk_header* h;
+    uint32_t *n, *tpos, *vpos;
+} walk;
+
+static walk get_walk(const layout* L, const views* s, uint32_t j) {
+    walk w;
+    uint8_t* slot = s->walks + (size_t)(j % WALK_SLOTS) * walk_slot_size(L->tracks);
+    w.h = (walk_header*)slot;
+    w.n = (uint32_t*)(slot + sizeof(walk_header));
+    w.tpos = w.n + L->tracks;
+    w.vpos = w.tpos + L->tracks;
+    if (!w.h->valid || w.h->block != j) {
+        uint64_t pos = mcd_rd_u32(L->block_table + 4u * j);
+        int last = j + 1u == L->blocks;
+        uint32_t u;
+        for (u = 0; u < L->tracks; ++u) {
+            uint32_t n = 0;
+            if (!last) {
+                n = read_bits(L->stream, pos, L->shift);
+                pos += L->shift;
+            }
+            w.n[u] = n;
+            w.tpos[u] = (uint32_t)pos;
+            pos += last ? 0u : time_bits(L, n);
+            w.vpos[u] = (uint32_t)pos;
+            pos += (uint64_t)(n + 1u) * s->tracks[u].keybits;
+        }
+        w.h->block = j;
+        w.h->valid = 1;
+    }
+    return w;
+}
+
+/* Frame of key k (0 ... n) of track u in block j. */
+static uint32_t key_frame(const layout* L, const walk* w, uint32_t j, uint32_t u, uint32_t k) {
+    uint32_t n = w->n[u], tb;
+    if (k == 0) return block_start(L, j);
+    tb = time_bits(L, n);
+    if (n * L->shift < L->block_len - 1u) {
+        return block_start(L, j) + read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
+    } else {
+        uint64_t mask = read_mask(L->stream, w->tpos[u], tb);
+        uint32_t off = 0;
+        while (k > 0) {
+            off++;
+            if (mask & 1u) k--;
+            mask >>= 1;
+        }
+        return block_start(L, j) + off;
+    }
+}
+
+static void read_key(const layout* L, const walk* w, const track_state* ts, uint32_t u, uint32_t k,
+                     float out[4]) {
+    uint64_t pos = w->vpos[u] + (uint64_t)k * ts->keybits;
+    uint32_t c;
+    for (c = 0; c < ts->dims; ++c) {
+        uint32_t q = ts->bits[c] ? read_bits(L->stream, pos, ts->bits[c]) : 0u;
+        out[c] = ts->minimum[c] + (float)q * ts->step[c];
+        pos += ts->bits[c];
+    }
+}
+
+/* A key reference: block and index inside it. */
+typedef struct keyref { uint32_t block, k; } keyref;
+
+/* Fill ts->t / ts->v with the four keys around frame position x. */
+static void locate(const layout* L, const views* s, uint32_t u, float x) {
+    track_state* ts = &s->tracks[u];
+    keyref refs[4];
+    uint32_t j, n, i, idx;
+    walk wj;
+    if (L->blocks == 1u) { /* a single frame: one key */
+        walk w0 = get_walk(L, s, 0);
+        float val[4];
+        read_key(L, &w0, ts, u, 0, val);
+        for (idx = 0; idx < 4; ++idx) {
+            ts->t[idx] = idx < 2u ? 0.0f : 1.0f; /* a flat curve through the one key */
+            memcpy(ts->v[idx], val, sizeof val);
+        }
+        ts->valid = 1;
+        return;
+    }
+    j = (uint32_t)x >> L->shift;
+    if (j > L->blocks - 2u) j = L->blocks - 2u;
+    wj = get_walk(L, s, j);
+    n = wj.n[u];
+    /* Interval i: the last key of block j at or before x (key n+1 is the next block's start). */
+    for (i = 0; i < n; ++i)
+        if ((float)key_frame(L, &wj, j, u, i + 1u) > x) break;
+    refs[1].block = j; refs[1].k = i;
+    if (i > 0) { refs[0].block = j; refs[0].k = i - 1u; }
+    else if (j > 0) { walk wp = get_walk(L, s, j - 1u); refs[0].block = j - 1u; refs[0].k = wp.n[u]; }
+    else refs[0] = refs[1];
+    if (i + 1u <= n) { refs[2].block = j; refs[2].k = i + 1u; }
+    else { refs[2].block = j + 1u; refs[2].k = 0; }
+    if (i + 2u <= n) { refs[3].block = j; refs[3].k = i + 2u; }
+    else if (i + 2u == n + 1u) { refs[3].block = j + 1u; refs[3].k = 0; }
+    else if (j + 2u == L->blocks) refs[3] = refs[2];
+    else {
+        walk wn = get_walk(L, s, j + 1u);
+        if (wn.n[u] > 0) { refs[3].block = j + 1u; refs[3].k = 1; }
+        else { refs[3].block = j + 2u; refs[3].k = 0; }
+    }
+    for (idx = 0; idx < 4; ++idx) {
+        walk w = get_walk(L, s, refs[idx].block);
+        ts->t[idx] = (float)key_frame(L, &w, refs[idx].block, u, refs[idx].k);
+        read_key(L, &w, ts, u, refs[idx].k, ts->v[idx]);
+    }
+    ts->valid = 1;
+}
+
+static void eval_track(const track_state* ts, float x, float out[4]) {
+    float t0 = ts->t[0], t1 = ts->t[1], t2 = ts->t[2], t3 = ts->t[3];
+    float h = t2 - t1, s = (x - t1) / h, s2 = s * s, s3 = s2 * s;
+    float h00 = 2.0f * s3 - 3.0f * s2 + 1.0f, h10 = s3 - 2.0f * s2 + s;
+    float h01 = -2.0f * s3 + 3.0f * s2, h11 = s3 - s2;
+    float a = h10 * h / (t2 - t0), b = h11 * h / (t3 - t1);
+    uint32_t c;
+    for (c = 0; c < ts->dims; ++c)
+        out[c] = h00 * ts->v[1][c] + h01 * ts->v[2][c] + a * (ts->v[2][c] - ts->v[0][c]) + b * (ts->v[3][c] - ts->v[1][c]);
+}
+
+static mcd_quat mrp_to_quat(const float p[3]) {
+    float s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    float inv = 1.0f / (1.0f + s);
+    mcd_quat q;
+    q.x = 2.0f * p[0] * inv;
+    q.y = 2.0f * p[1] * inv;
+    q.z = 2.0f * p[2] * inv;
+    q.w = (1.0f - s) * inv;
+    return q;
+}
+
+static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {
+    uint32_t i, c, k, off;
+    s->st->tracks = L->tracks;
+    s->st->nodes = L->nodes;
+    for (i = 0, off = 0; i < L->tracks; ++i) {
+        const uint8_t* d = L->descs + off;
+        track_state* ts = &s->tracks[i];
+        uint32_t head;
+        memset(ts, 0, sizeof *ts);
+        ts->kind = d[0];
+        ts->dims = kind_dims(ts->kind);
+        head = ts->dims == 4u ? 8u : 4u;
+        for (c = 0; c < ts->dims; ++c) {
+            ts->bits[c] = d[1 + c];
+            ts->keybits += ts->bits[c];
+            ts->minimum[c] = mcd_rd_f32(d + head + 4 * c);
+            ts->step[c] = mcd_rd_f32(d + head + 4 * (ts->dims + c));
+        }
+        if (ts->kind != KIND_TRANSLATION) {
+            const uint8_t* r = d + head + 8u * ts->dims;
+            float p[3];
+            for (k = 0; k < 3; ++k) p[k] = (float)(int16_t)mcd_rd_u16(r + 2 * k) / 32767.0f;
+            ts->ref = mrp_to_quat(p);
+            if (ts->kind == KIND_TWIST) {
+                float n2 = 0.0f, inv;
+                for (k = 0; k < 3; ++k) {
+                    ts->axis[k] = (float)(int16_t)mcd_rd_u16(r + 8 + 2 * k) / 32767.0f;
+                    n2 += ts->axis[k] * ts->axis[k];
+                }
+                inv = 1.0f / sqrtf(n2);
+                for (k = 0; k < 3; ++k) ts->axis[k] *= inv;
+            }
+        }
+        off += desc_size(ts->kind);
+    }
+    for (i = 0; i < L->nodes; ++i) {
+        const uint8_t* e = L->node_table + (size_t)i * NODE_ENTRY;
+        const uint8_t* rec = v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
+        node_plan* np = &s->plans[i];
+        uint32_t ri = mcd_rd_u16(e + 2), ti = mcd_rd_u16(e + 4);
+        np->base.rotation[0] = np->base.rotation[1] = np->base.rotation[2] = 0.0f;
+        np->base.rotation[3] = 1.0f;
+        for (k = 0; k < 3; ++k) np->base.translation[k] = mcd_rd_f32(rec + 8 + 4 * k);
+        np->rot_track = -1;
+        np->trans_track = -1;
+        if (e[0] == 1)
+            for (k = 0; k < 4; ++k) np->base.rotation[k] = mcd_rd_f32(L->consts + 4u * (ri + k));
+        else if (e[0] == 2)
+            np->rot_track = (int32_t)ri;
+        if (e[1] == 1)
+            for (k = 0; k < 3; ++k) np->base.translation[k] = mcd_rd_f32(L->consts + 4u * (ti + k));
+        else if (e[1] == 2)
+            np->trans_track = (int32_t)ti;
+    }
+    for (k = 0; k < WALK_SLOTS; ++k) ((walk_header*)(s->walks + (size_t)k * walk_slot_size(L->tracks)))->valid = 0;
+}
+
+static void track_value(const layout* L, const views* s, uint32_t u, float x, float out[4]) {
+    track_state* ts = &s->tracks[u];
+    /* Reuse the cached interval while x stays inside it (sequential playback). */
+    if (!ts->valid || x < ts->t[1] || x > ts->t[2] || (x == ts->t[2] && x < (float)(L->frames - 1u)))
+        locate(L, s, u, x);
+    eval_track(ts, x, out);
+}
+
+static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
+                                void* scratch, int fresh) {
+    layout L;
+    views s;
+    uint32_t i;
+    (void)flags;
+    read_layout(v->payload, &L);
+    scratch_views(scratch, L.nodes, L.tracks, &s);
+    if (fresh) prepare(&L, v, &s);
+    for (i = 0; i < L.nodes; ++i) {
+        const node_plan* np = &s.plans[i];
+        out[i] = np->base;
+        if (np->rot_track >= 0) {
+            const track_state* ts = &s.tracks[np->rot_track];
+            float val[4];
+            mcd_quat q;
+            track_value(&L, &s, (uint32_t)np->rot_track, x, val);
+            if (ts->kind == KIND_MRP) {
+                q = mcd_qmul(ts->ref, mrp_to_quat(val));
+            } else {
+                float half = 0.5f * val[0], sn = sinf(half);
+                mcd_quat tw;
+                tw.x = ts->axis[0] * sn;
+                tw.y = ts->axis[1] * sn;
+                tw.z = ts->axis[2] * sn;
+                tw.w = cosf(half);
+                q = mcd_qmul(tw, mcd_qmul(ts->ref, mrp_to_quat(val + 1)));
+            }
+            out[i].rotation[0] = q.x;
+            out[i].rotation[1] = q.y;
+            out[i].rotation[2] = q.z;
+            out[i].rotation[3] = q.w;
+        }
+        if (np->trans_track >= 0) {
+            float val[4];
+            track_value(&L, &s, (uint32_t)np->trans_track, x, val);
+            out[i].translation[0] = val[0];
+            out[i].translation[1] = val[1];
+            out[i].translation[2] = val[2];
+        }
+    }
+    return MCD_OK;
+}
+
+const mcd_codec_ops mcd_codec_spline_ops = {
+    MCD_CODEC_SPLINE, 0x4E4C5053u /* "SPLN" */, spline_validate, spline_scratch_size, spline_sample};

@@ -1,0 +1,13 @@
+/* The codec table: the only place that lists the codecs this runtime decodes. */
+#include "internal.h"
+
+static const mcd_codec_ops* const k_codecs[] = {
+    &mcd_codec_spline_ops,
+};
+
+const mcd_codec_ops* mcd_find_codec(uint32_t codec) {
+    size_t i;
+    for (i = 0; i < sizeof k_codecs / sizeof k_codecs[0]; ++i)
+        if (k_codecs[i]->codec == codec) return k_codecs[i];
+    return NULL;
+}

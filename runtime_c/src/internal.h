@@ -1,0 +1,112 @@
+/* Internal declarations shared by the runtime's source files. Not installed. */
+#ifndef MCD_INTERNAL_H
+#define MCD_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mocodec.h"
+
+/* ---------------------------------------------------------------- limits (docs/FORMAT.md) */
+#define MCD_HEADER_SIZE 32u
+#define MCD_SECTION_ENTRY_SIZE 16u
+#define MCD_MAX_SECTIONS 4096u
+#define MCD_MAX_NODES 1024u
+#define MCD_MAX_CLIPS 65535u
+#define MCD_SKEL_NODE_SIZE 32u
+#define MCD_CLIP_RECORD_SIZE 48u
+#define MCD_MAX_FRAME_RATE 100000.0f
+#define MCD_MAX_ABS_VALUE 1e7f /* bound on every stored length or parameter: keeps outputs finite */
+
+/* ---------------------------------------------------------------- little-endian byte loads */
+/* Byte composition is endian-independent and compiles to single loads on x86 and ARM. */
+static inline uint16_t mcd_rd_u16(const uint8_t* p) {
+    return (uint16_t)(p[0] | (p[1] << 8));
+}
+static inline uint32_t mcd_rd_u32(const uint8_t* p) {
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+static inline uint64_t mcd_rd_u64(const uint8_t* p) {
+    return (uint64_t)mcd_rd_u32(p) | ((uint64_t)mcd_rd_u32(p + 4) << 32);
+}
+static inline int32_t mcd_rd_i32(const uint8_t* p) {
+    uint32_t u = mcd_rd_u32(p);
+    return u <= 0x7FFFFFFFu ? (int32_t)u : (int32_t)(u - 0x80000000u) - (int32_t)0x7FFFFFFF - 1;
+}
+float mcd_rd_f32(const uint8_t* p);
+
+/* True when x is finite (no isfinite in strict C99 without libm macros on every compiler). */
+static inline int mcd_finite(float x) {
+    return x == x && x - x == 0.0f;
+}
+
+static inline uint32_t mcd_fourcc(char a, char b, char c, char d) {
+    return (uint32_t)(uint8_t)a | ((uint32_t)(uint8_t)b << 8) | ((uint32_t)(uint8_t)c << 16) |
+           ((uint32_t)(uint8_t)d << 24);
+}
+
+uint32_t mcd_crc32(const uint8_t* data, size_t size);
+
+/* ---------------------------------------------------------------- quaternion helpers */
+typedef struct mcd_quat { float x, y, z, w; } mcd_quat;
+
+static inline mcd_quat mcd_qmul(mcd_quat a, mcd_quat b) {
+    mcd_quat r;
+    r.x = a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y;
+    r.y = a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x;
+    r.z = a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w;
+    r.w = a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z;
+    return r;
+}
+
+/* v' = q v q* for unit q. */
+static inline void mcd_qrotate(mcd_quat q, const float v[3], float out[3]) {
+    float tx = 2.0f * (q.y * v[2] - q.z * v[1]);
+    float ty = 2.0f * (q.z * v[0] - q.x * v[2]);
+    float tz = 2.0f * (q.x * v[1] - q.y * v[0]);
+    out[0] = v[0] + q.w * tx + (q.y * tz - q.z * ty);
+    out[1] = v[1] + q.w * ty + (q.z * tx - q.x * tz);
+    out[2] = v[2] + q.w * tz + (q.x * ty - q.y * tx);
+}
+
+/* ---------------------------------------------------------------- clip view and codecs */
+/* Everything a codec needs to know about one clip, resolved from the container. */
+typedef struct mcd_clip_view {
+    const uint8_t* payload;
+    uint32_t payload_size;
+    uint32_t frame_count;
+    float frame_rate;
+    const uint8_t* skeleton; /* start of the clip's SKEL section */
+    uint32_t node_count;
+} mcd_clip_view;
+
+typedef struct mcd_codec_ops {
+    uint32_t codec;         /* mcd_codec */
+    uint32_t section_kind;  /* FourCC of the section that holds its payloads */
+    /* Full check of one clip's payload; after MCD_OK sampling is memory-safe and finite. */
+    mcd_result (*validate)(const mcd_clip_view* clip);
+    /* Scratch bytes this codec needs for the clip (multiple of 16). Called after validate. */
+    size_t (*scratch_size)(const mcd_clip_view* clip);
+    /* Local transforms of every node at frame position x in [0, frame_count - 1].
+     * `fresh` is nonzero when the scratch holds nothing from an earlier call for this clip. */
+    mcd_result (*sample)(const mcd_clip_view* clip, float x, uint32_t flags, mcd_transform* out,
+                         void* scratch, int fresh);
+} mcd_codec_ops;
+
+/* The codec table (codecs.c); NULL for an unknown codec id. */
+const mcd_codec_ops* mcd_find_codec(uint32_t codec);
+
+/* Codec implementations. */
+extern const mcd_codec_ops mcd_codec_spline_ops;
+
+/* ---------------------------------------------------------------- container access */
+/* Resolve clip `clip` of an opened (validated) asset. */
+mcd_result mcd_clip_view_get(const mcd_asset* asset, uint32_t clip, mcd_clip_view* out,
+                             const mcd_codec_ops** out_ops);
+
+/* Offset of skeleton `index`'s SKEL section, or 0 when there is none. */
+uint32_t mcd_skeleton_offset(const mcd_asset* asset, uint32_t index);
+
+#define MCD_SCRATCH_HEADER_SIZE 64u
+
+#endif /* MCD_INTERNAL_H */

@@ -1,0 +1,109 @@
+/* Sampling entry point: argument checks, time mapping, codec dispatch, local -> world. */
+#include <math.h>
+#include <string.h>
+
+#include "internal.h"
+
+#define SCRATCH_MAGIC 0x5343444Du /* "MDCS" */
+
+/* The first MCD_SCRATCH_HEADER_SIZE bytes of every scratch buffer. */
+typedef struct scratch_header {
+    uint32_t magic;
+    uint32_t clip; /* clip the codec area holds state for, or UINT32_MAX */
+    uint64_t size;
+    const uint8_t* data; /* the asset it was initialised for */
+    uint64_t asset_size;
+    uint32_t crc;
+} scratch_header;
+
+typedef char scratch_header_fits[sizeof(scratch_header) <= MCD_SCRATCH_HEADER_SIZE ? 1 : -1];
+
+size_t mcd_scratch_size(const mcd_asset* asset) {
+    return asset ? (size_t)asset->scratch_size : 0;
+}
+
+mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratch_size) {
+    scratch_header* h = (scratch_header*)scratch;
+    if (!asset || !asset->data || !scratch) return MCD_ERROR_INVALID_ARGUMENT;
+    if (((uintptr_t)scratch & 15u) != 0) return MCD_ERROR_INVALID_ARGUMENT;
+    if (scratch_size < asset->scratch_size) return MCD_ERROR_BUFFER_TOO_SMALL;
+    memset(scratch, 0, asset->scratch_size);
+    h->magic = SCRATCH_MAGIC;
+    h->clip = UINT32_MAX;
+    h->size = scratch_size;
+    h->data = asset->data;
+    h->asset_size = asset->size;
+    h->crc = mcd_rd_u32(asset->data + 20);
+    return MCD_OK;
+}
+
+/* Frame position in [0, frame_count - 1] for a time in seconds. */
+static float frame_position(float time_seconds, float rate, uint32_t frames, uint32_t flags) {
+    float last = (float)(frames - 1u);
+    float x = time_seconds * rate, r;
+    if (frames <= 1u) return 0.0f;
+    if (flags & MCD_SAMPLE_LOOP) {
+        x = fmodf(x, last);
+        if (x < 0.0f) x += last;
+        if (!(x < last)) x = 0.0f; /* fmodf rounding can land exactly on `last` */
+    } else if (x < 0.0f) {
+        x = 0.0f;
+    } else if (x > last) {
+        x = last;
+    }
+    r = floorf(x + 0.5f);
+    /* Times computed as frame / rate in float land a few ulps off the frame: snap them. */
+    if ((flags & MCD_SAMPLE_NEAREST) || fabsf(x - r) < 1e-4f + 4e-7f * x) x = r;
+    if (x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
+    return x;
+}
+
+static void local_to_world(const uint8_t* skeleton, uint32_t nodes, mcd_transform* pose) {
+    uint32_t i;
+    for (i = 0; i < nodes; ++i) {
+        int32_t parent = mcd_rd_i32(skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE);
+        if (parent >= 0) {
+            const mcd_transform* p = &pose[parent];
+            mcd_transform* c = &pose[i];
+            mcd_quat pq, cq, wq;
+            float t[3];
+            pq.x = p->rotation[0]; pq.y = p->rotation[1]; pq.z = p->rotation[2]; pq.w = p->rotation[3];
+            cq.x = c->rotation[0]; cq.y = c->rotation[1]; cq.z = c->rotation[2]; cq.w = c->rotation[3];
+            mcd_qrotate(pq, c->translation, t);
+            wq = mcd_qmul(pq, cq);
+            c->translation[0] = p->translation[0] + t[0];
+            c->translation[1] = p->translation[1] + t[1];
+            c->translation[2] = p->translation[2] + t[2];
+            c->rotation[0] = wq.x; c->rotation[1] = wq.y; c->rotation[2] = wq.z; c->rotation[3] = wq.w;
+        }
+    }
+}
+
+mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds, uint32_t flags,
+                      mcd_transform* out_pose, uint32_t pose_capacity, void* scratch) {
+    const uint32_t known = MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST;
+    scratch_header* h = (scratch_header*)scratch;
+    mcd_clip_view view;
+    const mcd_codec_ops* ops;
+    mcd_result r;
+    float x;
+    int fresh;
+    if (!asset || !asset->data || !out_pose || !scratch) return MCD_ERROR_INVALID_ARGUMENT;
+    if ((flags & ~known) != 0 || !mcd_finite(time_seconds)) return MCD_ERROR_INVALID_ARGUMENT;
+    if (h->magic != SCRATCH_MAGIC || h->data != asset->data || h->asset_size != asset->size ||
+        h->crc != mcd_rd_u32(asset->data + 20) || h->size < asset->scratch_size)
+        return MCD_ERROR_SCRATCH_MISMATCH;
+    r = mcd_clip_view_get(asset, clip, &view, &ops);
+    if (r != MCD_OK) return r;
+    if (pose_capacity < view.node_count) return MCD_ERROR_BUFFER_TOO_SMALL;
+    x = frame_position(time_seconds, view.frame_rate, view.frame_count, flags);
+    fresh = h->clip != clip;
+    h->clip = clip;
+    r = ops->sample(&view, x, flags, out_pose, (uint8_t*)scratch + MCD_SCRATCH_HEADER_SIZE, fresh);
+    if (r != MCD_OK) {
+        h->clip = UINT32_MAX;
+        return r;
+    }
+    if (flags & MCD_SAMPLE_WORLD) local_to_world(view.skeleton, view.node_count, out_pose);
+    return MCD_OK;
+}
