@@ -140,7 +140,10 @@ typedef struct mcd_asset {
     uint32_t skeleton_offsets[16]; /* offsets of the first 16 SKEL sections */
     uint32_t section_table;     /* offset of the section table */
     uint32_t section_count;
-    uint32_t reserved[8];
+    uint8_t* resident;          /* the caller's resident memory, or NULL */
+    size_t resident_size;
+    uint32_t resident_offsets[8]; /* per codec id: offset of its section's resident block, or UINT32_MAX */
+    uint32_t codec_sections[8];   /* per codec id: its section's index + 1, or 0 */
 } mcd_asset;
 
 /* Runtime library version (MCD_VERSION of the build). Bindings check it at load time. */
@@ -159,16 +162,20 @@ MCD_API const char* mcd_result_string(mcd_result result);
 MCD_API mcd_result mcd_validate(const void* data, size_t size, uint32_t flags);
 
 /*
- * Bytes of resident memory mcd_open needs for this asset (0 for every format 1.0 asset:
- * they are sampled in place). Reads only the header and section table; fails like
- * mcd_validate on a broken header.
+ * Bytes of resident memory mcd_open needs for this asset: what codecs with entropy-coded
+ * sections decode into once at open (0 when every clip is sampled in place, as with the
+ * spline codec). Validates first (see mcd_validate; `flags` as there) and fails like it.
  */
-MCD_API mcd_result mcd_resident_size(const void* data, size_t size, size_t* out_size);
+MCD_API mcd_result mcd_resident_size(const void* data, size_t size, uint32_t flags,
+                                     size_t* out_size);
 
 /*
- * Validate (see mcd_validate; `flags` as there) and open an asset in place. The bytes must
- * stay alive and unchanged while the asset is used. `resident` may be NULL when
- * mcd_resident_size gave 0. Does not allocate.
+ * Validate (see mcd_validate; `flags` as there), decode what must be resident into
+ * `resident` (at least mcd_resident_size bytes, 16-byte aligned; may be NULL when that size
+ * is 0), check the decoded data, and open the asset. The bytes and the resident memory must
+ * stay alive and unchanged while the asset is used. Does not allocate. Fails with
+ * MCD_ERROR_BUFFER_TOO_SMALL when resident_size is too small, and MCD_ERROR_MALFORMED when
+ * decoded data breaks the format even though mcd_validate accepted the raw bytes.
  */
 MCD_API mcd_result mcd_open(const void* data, size_t size, uint32_t flags, void* resident,
                             size_t resident_size, mcd_asset* out_asset);

@@ -536,4 +536,5 @@ static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags,
 }
 
 const mcd_codec_ops mcd_codec_spline_ops = {
-    MCD_CODEC_SPLINE, 0x4E4C5053u /* "SPLN" */, spline_validate, spline_scratch_size, spline_sample};
+    MCD_CODEC_SPLINE, 0x4E4C5053u /* "SPLN" */, spline_validate, NULL, NULL, spline_scratch_size,
+    spline_sample};

@@ -11,3 +11,10 @@ const mcd_codec_ops* mcd_find_codec(uint32_t codec) {
         if (k_codecs[i]->codec == codec) return k_codecs[i];
     return NULL;
 }
+
+const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind) {
+    size_t i;
+    for (i = 0; i < sizeof k_codecs / sizeof k_codecs[0]; ++i)
+        if (k_codecs[i]->section_kind == section_kind) return k_codecs[i];
+    return NULL;
+}

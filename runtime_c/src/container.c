@@ -154,6 +154,7 @@ typedef struct table_scan {
     uint32_t clip_section; /* index */
     uint32_t clip_count_sections;
     uint32_t meta_count;
+    uint32_t codec_sections[MCD_MAX_CODEC_ID + 1]; /* per codec id: section index + 1, 0 = none */
 } table_scan;
 
 static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t) {
@@ -177,6 +178,13 @@ static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t)
         } else if (kind == KIND_META) {
             if (version != 1) return MCD_ERROR_UNSUPPORTED;
             t->meta_count++;
+        } else {
+            const mcd_codec_ops* ops = mcd_find_codec_by_kind(kind);
+            if (ops) {
+                /* One section per codec: its resident block is found by codec id. */
+                if (t->codec_sections[ops->codec]) return MCD_ERROR_MALFORMED;
+                t->codec_sections[ops->codec] = i + 1;
+            }
         }
     }
     if (t->skeleton_count < 1 || t->clip_count_sections != 1 || t->meta_count > 1) return MCD_ERROR_MALFORMED;
@@ -215,8 +223,12 @@ static mcd_result resolve_clip(const mcd_asset* a, uint32_t clip, mcd_clip_view*
     if (mcd_rd_u32(e + 4) != 1) return MCD_ERROR_UNSUPPORTED;
     if ((poff & 3u) != 0 || (uint64_t)poff + psize > mcd_rd_u32(e + 12)) return MCD_ERROR_MALFORMED;
     skel_off = mcd_skeleton_offset(a, skel);
-    v->payload = a->data + mcd_rd_u32(e + 8) + poff;
+    v->section = a->data + mcd_rd_u32(e + 8);
+    v->section_size = mcd_rd_u32(e + 12);
+    v->payload = v->section + poff;
     v->payload_size = psize;
+    v->resident = (codec <= MCD_MAX_CODEC_ID && a->resident && a->resident_offsets[codec] != UINT32_MAX)
+                      ? a->resident + a->resident_offsets[codec] : NULL;
     v->frame_count = mcd_rd_u32(r + 24);
     v->frame_rate = mcd_rd_f32(r + 28);
     v->skeleton = a->data + skel_off;
@@ -287,6 +299,7 @@ static mcd_result validate_into(const void* data, size_t size, uint32_t flags, m
     r = scan_sections(d, count, &t);
     if (r != MCD_OK) return r;
     memset(a, 0, sizeof *a);
+    for (i = 0; i <= MCD_MAX_CODEC_ID && i < 8; ++i) a->resident_offsets[i] = UINT32_MAX;
     a->data = d;
     a->size = size;
     a->section_table = MCD_HEADER_SIZE;
@@ -297,7 +310,29 @@ static mcd_result validate_into(const void* data, size_t size, uint32_t flags, m
         uint32_t n = mcd_rd_u32(d + mcd_skeleton_offset(a, i));
         if (n > a->max_nodes) a->max_nodes = n;
     }
+    for (i = 0; i <= MCD_MAX_CODEC_ID && i < 8; ++i) a->codec_sections[i] = t.codec_sections[i];
     return check_clips(a, t.clip_section);
+}
+
+/* Resident layout: one 16-aligned block per codec section that asks for one, in codec id
+ * order. Fills asset->resident_offsets (relative) and returns the total. */
+static size_t resident_layout(mcd_asset* a) {
+    size_t total = 0;
+    uint32_t codec;
+    for (codec = 0; codec <= MCD_MAX_CODEC_ID && codec < 8; ++codec) {
+        uint32_t section = a->codec_sections[codec];
+        const mcd_codec_ops* ops = mcd_find_codec(codec);
+        const uint8_t* e;
+        size_t need;
+        a->resident_offsets[codec] = UINT32_MAX;
+        if (!section || !ops || !ops->resident_size) continue;
+        e = a->data + a->section_table + (size_t)(section - 1u) * MCD_SECTION_ENTRY_SIZE;
+        need = ops->resident_size(a->data + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12));
+        if (need == 0) continue;
+        a->resident_offsets[codec] = (uint32_t)total;
+        total += (need + 15u) & ~(size_t)15u;
+    }
+    return total;
 }
 
 mcd_result mcd_validate(const void* data, size_t size, uint32_t flags) {
@@ -305,13 +340,13 @@ mcd_result mcd_validate(const void* data, size_t size, uint32_t flags) {
     return validate_into(data, size, flags, &scratch_asset);
 }
 
-mcd_result mcd_resident_size(const void* data, size_t size, size_t* out_size) {
-    uint32_t count;
+mcd_result mcd_resident_size(const void* data, size_t size, uint32_t flags, size_t* out_size) {
+    mcd_asset a;
     mcd_result r;
-    if (!data || !out_size) return MCD_ERROR_INVALID_ARGUMENT;
-    r = check_header((const uint8_t*)data, size, &count);
+    if (!out_size) return MCD_ERROR_INVALID_ARGUMENT;
+    r = validate_into(data, size, flags, &a);
     if (r != MCD_OK) return r;
-    *out_size = 0; /* format 1.0 assets are sampled in place */
+    *out_size = resident_layout(&a);
     return MCD_OK;
 }
 
@@ -319,11 +354,39 @@ mcd_result mcd_open(const void* data, size_t size, uint32_t flags, void* residen
                     size_t resident_size, mcd_asset* out_asset) {
     mcd_asset a;
     mcd_result r;
-    (void)resident;
-    (void)resident_size;
+    size_t need;
+    uint32_t codec, i;
     if (!out_asset) return MCD_ERROR_INVALID_ARGUMENT;
     r = validate_into(data, size, flags, &a);
     if (r != MCD_OK) return r;
+    need = resident_layout(&a);
+    if (need > 0) {
+        if (!resident) return MCD_ERROR_INVALID_ARGUMENT;
+        if (((uintptr_t)resident & 15u) != 0) return MCD_ERROR_INVALID_ARGUMENT;
+        if (resident_size < need) return MCD_ERROR_BUFFER_TOO_SMALL;
+        memset(resident, 0, need);
+        a.resident = (uint8_t*)resident;
+        a.resident_size = need;
+        for (codec = 0; codec <= MCD_MAX_CODEC_ID && codec < 8; ++codec) {
+            const mcd_codec_ops* ops = mcd_find_codec(codec);
+            const uint8_t* e;
+            if (a.resident_offsets[codec] == UINT32_MAX || !ops || !ops->open_section) continue;
+            e = a.data + a.section_table + (size_t)(a.codec_sections[codec] - 1u) * MCD_SECTION_ENTRY_SIZE;
+            r = ops->open_section(a.data + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12), a.resident + a.resident_offsets[codec]);
+            if (r != MCD_OK) return r;
+        }
+        /* Second pass: what only the decoded data can show. */
+        for (i = 0; i < a.clip_count; ++i) {
+            mcd_clip_view v;
+            const mcd_codec_ops* ops;
+            r = mcd_clip_view_get(&a, i, &v, &ops);
+            if (r != MCD_OK) return r;
+            if (v.resident) {
+                r = ops->validate(&v);
+                if (r != MCD_OK) return r;
+            }
+        }
+    }
     *out_asset = a;
     return MCD_OK;
 }

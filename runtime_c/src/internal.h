@@ -78,13 +78,27 @@ typedef struct mcd_clip_view {
     float frame_rate;
     const uint8_t* skeleton; /* start of the clip's SKEL section */
     uint32_t node_count;
+    const uint8_t* section;  /* the whole codec section the payload lies in */
+    uint32_t section_size;
+    /* The section's resident memory (filled by open_section), or NULL: always NULL during
+     * mcd_validate, and for codecs that sample in place. */
+    const uint8_t* resident;
 } mcd_clip_view;
 
 typedef struct mcd_codec_ops {
     uint32_t codec;         /* mcd_codec */
     uint32_t section_kind;  /* FourCC of the section that holds its payloads */
-    /* Full check of one clip's payload; after MCD_OK sampling is memory-safe and finite. */
+    /* Check one clip's payload. Called by mcd_validate with clip->resident == NULL (check
+     * everything the raw bytes allow) and again by mcd_open with the section's resident
+     * memory decoded (check what only the decoded data shows). After both return MCD_OK,
+     * sampling is memory-safe and finite. */
     mcd_result (*validate)(const mcd_clip_view* clip);
+    /* Resident bytes the codec decodes its section into at open (multiple of 16), or NULL
+     * when it samples in place. Safe on any section bytes; 0 means none. */
+    size_t (*resident_size)(const uint8_t* section, uint32_t size);
+    /* Decode the section into `resident` (resident_size bytes, 16-aligned, zeroed by the
+     * caller) and check the decoded data. NULL when resident_size is NULL. */
+    mcd_result (*open_section)(const uint8_t* section, uint32_t size, uint8_t* resident);
     /* Scratch bytes this codec needs for the clip (multiple of 16). Called after validate. */
     size_t (*scratch_size)(const mcd_clip_view* clip);
     /* Local transforms of every node at frame position x in [0, frame_count - 1].
@@ -93,8 +107,11 @@ typedef struct mcd_codec_ops {
                          void* scratch, int fresh);
 } mcd_codec_ops;
 
-/* The codec table (codecs.c); NULL for an unknown codec id. */
+/* The codec table (codecs.c); NULL for an unknown codec id or section kind. */
 const mcd_codec_ops* mcd_find_codec(uint32_t codec);
+const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
+
+#define MCD_MAX_CODEC_ID 7u /* resident_offsets[] in mcd_asset is indexed by codec id */
 
 /* Codec implementations. */
 extern const mcd_codec_ops mcd_codec_spline_ops;

@@ -68,6 +68,12 @@ def _check(code: int, context: str) -> None:
         raise RuntimeResultError(code, context)
 
 
+def _aligned16(mem):
+    """A pointer into ``mem`` (allocated with 16 bytes of slack) on a 16-byte boundary."""
+    addr = int(ffi.cast("uintptr_t", mem))
+    return mem + ((-addr) % 16)
+
+
 def version() -> tuple[int, int, int]:
     """The runtime library's version (major, minor, patch)."""
     v = lib.mcd_version()
@@ -110,12 +116,16 @@ class Asset:
         self._buf = ffi.from_buffer(self._data)
         self._asset = ffi.new("mcd_asset*")
         flags = VALIDATE_SKIP_CHECKSUM if skip_checksum else 0
-        _check(lib.mcd_open(self._buf, len(self._data), flags, ffi.NULL, 0, self._asset), "mcd_open")
+        need = ffi.new("size_t*")
+        _check(lib.mcd_resident_size(self._buf, len(self._data), flags, need), "mcd_resident_size")
+        self.resident_size = int(need[0])
+        self._resident_mem = ffi.new("uint8_t[]", self.resident_size + 16)
+        resident = _aligned16(self._resident_mem)
+        _check(lib.mcd_open(self._buf, len(self._data), flags, resident, self.resident_size,
+                            self._asset), "mcd_open")
         size = lib.mcd_scratch_size(self._asset)
-        # 16-byte alignment: allocate slack and offset into it.
         self._scratch_mem = ffi.new("uint8_t[]", size + 16)
-        addr = int(ffi.cast("uintptr_t", self._scratch_mem))
-        self._scratch = self._scratch_mem + ((-addr) % 16)
+        self._scratch = _aligned16(self._scratch_mem)
         _check(lib.mcd_scratch_init(self._asset, self._scratch, size), "mcd_scratch_init")
         self.clips = [self._clip_info(i) for i in range(lib.mcd_clip_count(self._asset))]
 
