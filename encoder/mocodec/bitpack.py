@@ -41,3 +41,13 @@ class BitWriter:
         out = np.zeros(nbytes * 8, dtype=np.uint8)
         out[: len(bits)] = bits
         return np.packbits(out, bitorder="little").tobytes()
+
+
+def read_bits(data: bytes, bit: int, width: int) -> int:
+    """The ``width``-bit field at bit position ``bit`` (least significant bit first)."""
+    if width == 0:
+        return 0
+    first = bit >> 3
+    last = (bit + width + 7) >> 3
+    word = int.from_bytes(data[first:last], "little")
+    return (word >> (bit & 7)) & ((1 << width) - 1)

@@ -153,6 +153,9 @@ def encode_motions(
         },
     }
     asset = builder.build()
+    stats = out.stats or [{} for _ in motions]
+    for s, payload in zip(stats, out.payloads):
+        s["payload_bytes"] = len(payload)
     clips = [ClipReport(m.name, m.frame_count, r, u, s)
-             for m, r, u, s in zip(motions, reports, units, out.stats or [{}] * len(motions))]
+             for m, r, u, s in zip(motions, reports, units, stats)]
     return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed)

@@ -232,6 +232,9 @@ class Motion:
         """
         sk = self.skeleton
         out = np.zeros((self.frame_count, sk.channel_count))
+        # Without a reference, three-axis joints are made continuous together, grouped by
+        # rotation order, so the frame-by-frame pass runs once per order, not once per joint.
+        pending: dict[str, list[tuple[list[int], np.ndarray]]] = {}
         col = 0
         for i, ch in enumerate(sk.channels):
             cols = list(range(col, col + len(ch)))
@@ -248,9 +251,16 @@ class Motion:
                 angles = rotations.euler_nearest(angles, reference[:, rot_cols], order)
             elif reference is not None:
                 angles = rotations.unwrap_euler(angles, reference[:, rot_cols])
+            elif len(order) == 3:
+                pending.setdefault(order, []).append((rot_cols, angles))
+                continue
             else:
                 angles = rotations.unwrap_euler(angles)
             out[:, rot_cols] = angles
+        for order, items in pending.items():
+            stacked = rotations.euler_continuous(np.stack([a for _, a in items], axis=1), order)
+            for k, (rot_cols, _) in enumerate(items):
+                out[:, rot_cols] = stacked[:, k]
         return out
 
     def slice(self, start: int, stop: int) -> "Motion":

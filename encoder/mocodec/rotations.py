@@ -209,3 +209,13 @@ def quat_mean(q: np.ndarray) -> np.ndarray:
     if r[3] < 0:
         r = -r
     return r / np.linalg.norm(r)
+
+
+def euler_continuous(angles_deg: np.ndarray, order: str) -> np.ndarray:
+    """Make Euler angles ``(F, ..., 3)`` (three distinct axes) continuous along frames by
+    choosing, frame by frame, the triple and whole turns nearest the previous frame: for
+    decoded clips, which have no source to follow. Vectorised over everything but frames."""
+    a = np.array(angles_deg, dtype=np.float64, copy=True)
+    for f in range(1, len(a)):
+        a[f] = euler_nearest(a[f], a[f - 1], order)
+    return a

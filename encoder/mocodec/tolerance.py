@@ -160,3 +160,4 @@ def tighten(
         budget *= spread[:frames]
         changed.append(t)
     return changed
+

@@ -57,7 +57,7 @@ static uint32_t time_bits(const layout* L, uint32_t n) {
 }
 
 /* `n` <= 32 bits at bit position `pos`. The stream's 8-byte zero tail makes the load safe. */
-static uint32_t read_bits(const uint8_t* stream, uint64_t pos, uint32_t n) {
+static inline uint32_t read_bits(const uint8_t* stream, uint64_t pos, uint32_t n) {
     uint64_t w = mcd_rd_u64(stream + (size_t)(pos >> 3)) >> (pos & 7u);
     return n >= 32u ? (uint32_t)w : (uint32_t)(w & ((1u << n) - 1u));
 }
@@ -242,6 +242,11 @@ typedef struct track_state {
     float axis[4];
     float t[4];    /* frames of keys i-1, i, i+1, i+2 */
     float v[4][4]; /* their values */
+    uint32_t ref_block[4], ref_k[4]; /* where those keys are: block and index in it */
+    /* The segment [t1, t2] as a cubic in s = (x - t1) / (t2 - t1), Horner-ready: computed
+     * once per key change, so a sample costs three multiply-adds per component. */
+    float inv_h;
+    float coef[4][4]; /* [component][power] */
 } track_state;
 
 typedef struct node_plan {
@@ -272,11 +277,21 @@ static size_t spline_scratch_size(const mcd_clip_view* v) {
            align16z(sizeof(track_state) * tracks) + WALK_SLOTS * walk_slot_size(tracks);
 }
 
+/* Block walk: per track, extra-key count and bit positions of its times and values. */
+typedef struct walk {
+    walk_header* h;
+    uint32_t *n, *tpos, *vpos;
+} walk;
+
 typedef struct views {
     spline_state* st;
     node_plan* plans;
     track_state* tracks;
     uint8_t* walks;
+    /* Walks already resolved during this sample call, by block % WALK_SLOTS: saves the
+     * slot lookup and validity check on every key read. */
+    walk resolved[WALK_SLOTS];
+    uint32_t resolved_block[WALK_SLOTS];
 } views;
 
 static void scratch_views(void* scratch, uint32_t nodes, uint32_t tracks, views* s) {
@@ -290,13 +305,7 @@ static void scratch_views(void* scratch, uint32_t nodes, uint32_t tracks, views*
     s->walks = b;
 }
 
-/* Block walk: per track, extra-key count and bit positions of its times and values. */
-typedef struct walk {
-    walk_header* h;
-    uint32_t *n, *tpos, *vpos;
-} walk;
-
-static walk get_walk(const layout* L, const views* s, uint32_t j) {
+static walk get_walk_slow(const layout* L, const views* s, uint32_t j) {
     walk w;
     uint8_t* slot = s->walks + (size_t)(j % WALK_SLOTS) * walk_slot_size(L->tracks);
     w.h = (walk_header*)slot;
@@ -325,29 +334,86 @@ static walk get_walk(const layout* L, const views* s, uint32_t j) {
     return w;
 }
 
-/* Frame of key k (0 ... n) of track u in block j. */
-static uint32_t key_frame(const layout* L, const walk* w, uint32_t j, uint32_t u, uint32_t k) {
-    uint32_t n = w->n[u], tb;
-    if (k == 0) return block_start(L, j);
-    tb = time_bits(L, n);
-    if (n * L->shift < L->block_len - 1u) {
-        return block_start(L, j) + read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
-    } else {
-        uint64_t mask = read_mask(L->stream, w->tpos[u], tb);
-        uint32_t off = 0;
-        while (k > 0) {
-            off++;
-            if (mask & 1u) k--;
-            mask >>= 1;
-        }
-        return block_start(L, j) + off;
+static const walk* walk_of(const layout* L, views* s, uint32_t j) {
+    uint32_t slot = j % WALK_SLOTS;
+    if (s->resolved_block[slot] != j) {
+        s->resolved[slot] = get_walk_slow(L, s, j);
+        s->resolved_block[slot] = j;
     }
+    return &s->resolved[slot];
+}
+
+static walk get_walk(const layout* L, views* s, uint32_t j) {
+    return *walk_of(L, s, j);
+}
+
+/* Index of the lowest set bit of a non-zero mask. */
+static uint32_t lowest_bit(uint64_t m) {
+#if defined(__GNUC__) || defined(__clang__)
+    return (uint32_t)__builtin_ctzll(m);
+#else
+    uint32_t i = 0;
+    while (!(m & 1u)) {
+        m >>= 1;
+        ++i;
+    }
+    return i;
+#endif
+}
+
+/* Index of the highest set bit of a non-zero mask. */
+static uint32_t highest_bit(uint64_t m) {
+#if defined(__GNUC__) || defined(__clang__)
+    return 63u - (uint32_t)__builtin_clzll(m);
+#else
+    uint32_t i = 0;
+    while (m >>= 1) ++i;
+    return i;
+#endif
+}
+
+/* Offsets of all keys of track u in block j: out[0] = 0, out[1 .. n] the extras. */
+static uint32_t block_offsets(const layout* L, const walk* w, uint32_t u, uint8_t out[64]) {
+    uint32_t n = w->n[u], e;
+    out[0] = 0;
+    if (n * L->shift < L->block_len - 1u) {
+        for (e = 0; e < n; ++e)
+            out[1 + e] = (uint8_t)read_bits(L->stream, w->tpos[u] + (uint64_t)e * L->shift, L->shift);
+    } else {
+        uint64_t mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
+        for (e = 0; e < n; ++e) {
+            out[1 + e] = (uint8_t)(lowest_bit(mask) + 1u);
+            mask &= mask - 1u;
+        }
+    }
+    return n;
+}
+
+/* Offset of key k (0 ... n) of track u in block j, without decoding the others. */
+static uint32_t key_offset(const layout* L, const walk* w, uint32_t u, uint32_t k) {
+    uint32_t n = w->n[u];
+    uint64_t mask;
+    if (k == 0) return 0;
+    if (n * L->shift < L->block_len - 1u)
+        return read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
+    mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
+    while (--k) mask &= mask - 1u;
+    return lowest_bit(mask) + 1u;
 }
 
 static void read_key(const layout* L, const walk* w, const track_state* ts, uint32_t u, uint32_t k,
                      float out[4]) {
     uint64_t pos = w->vpos[u] + (uint64_t)k * ts->keybits;
     uint32_t c;
+    if (ts->keybits <= 56u) { /* the whole key in one 8-byte load */
+        uint64_t word = mcd_rd_u64(L->stream + (size_t)(pos >> 3)) >> (pos & 7u);
+        for (c = 0; c < ts->dims; ++c) {
+            uint32_t q = (uint32_t)(word & ((1u << ts->bits[c]) - 1u));
+            out[c] = ts->minimum[c] + (float)q * ts->step[c];
+            word >>= ts->bits[c];
+        }
+        return;
+    }
     for (c = 0; c < ts->dims; ++c) {
         uint32_t q = ts->bits[c] ? read_bits(L->stream, pos, ts->bits[c]) : 0u;
         out[c] = ts->minimum[c] + (float)q * ts->step[c];
@@ -355,64 +421,134 @@ static void read_key(const layout* L, const walk* w, const track_state* ts, uint
     }
 }
 
-/* A key reference: block and index inside it. */
-typedef struct keyref { uint32_t block, k; } keyref;
-
-/* Fill ts->t / ts->v with the four keys around frame position x. */
-static void locate(const layout* L, const views* s, uint32_t u, float x) {
+/* Load key slot `slot` of a track from (block, k). */
+static void load_slot(const layout* L, views* s, uint32_t u, uint32_t slot, uint32_t block, uint32_t k) {
     track_state* ts = &s->tracks[u];
-    keyref refs[4];
-    uint32_t j, n, i, idx;
-    walk wj;
-    if (L->blocks == 1u) { /* a single frame: one key */
-        walk w0 = get_walk(L, s, 0);
-        float val[4];
-        read_key(L, &w0, ts, u, 0, val);
-        for (idx = 0; idx < 4; ++idx) {
-            ts->t[idx] = idx < 2u ? 0.0f : 1.0f; /* a flat curve through the one key */
-            memcpy(ts->v[idx], val, sizeof val);
-        }
+    walk w = get_walk(L, s, block);
+    ts->ref_block[slot] = block;
+    ts->ref_k[slot] = k;
+    ts->t[slot] = (float)(block_start(L, block) + key_offset(L, &w, u, k));
+    read_key(L, &w, ts, u, k, ts->v[slot]);
+}
+
+/* The key after (block, k), or the same key at the end of the clip (end keys repeat). */
+static void next_key(const layout* L, views* s, uint32_t u, uint32_t* block, uint32_t* k) {
+    walk w = get_walk(L, s, *block);
+    if (*k < w.n[u]) {
+        ++*k;
+    } else if (*block + 1u < L->blocks) {
+        ++*block;
+        *k = 0;
+    }
+}
+
+/* Offset of the last key of track u in a block (0 when it has no extras). */
+static uint32_t last_offset(const layout* L, const walk* w, uint32_t u) {
+    uint32_t n = w->n[u];
+    uint64_t mask;
+    if (n == 0) return 0;
+    if (n * L->shift < L->block_len - 1u)
+        return read_bits(L->stream, w->tpos[u] + (uint64_t)(n - 1u) * L->shift, L->shift);
+    mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
+    return highest_bit(mask) + 1u;
+}
+
+static void set_slot(const layout* L, track_state* ts, uint32_t slot, const walk* w, uint32_t u,
+                     uint32_t block, uint32_t k, uint32_t frame) {
+    ts->ref_block[slot] = block;
+    ts->ref_k[slot] = k;
+    ts->t[slot] = (float)frame;
+    read_key(L, w, ts, u, k, ts->v[slot]);
+}
+
+/* Fill the track's four keys around frame position x (random access): the block of x and
+ * at most one key of each neighbouring block, each found without decoding the rest. */
+static void locate(const layout* L, views* s, uint32_t u, float x) {
+    track_state* ts = &s->tracks[u];
+    uint8_t offs[64];
+    uint32_t j, n, i, sj, sj1;
+    const walk* wj;
+    if (L->blocks == 1u) { /* a single frame: one key, a flat curve */
+        uint32_t slot;
+        wj = walk_of(L, s, 0);
+        for (slot = 0; slot < 4; ++slot) set_slot(L, ts, slot, wj, u, 0, 0, 0);
+        ts->t[2] = ts->t[3] = 1.0f;
         ts->valid = 1;
         return;
     }
     j = (uint32_t)x >> L->shift;
     if (j > L->blocks - 2u) j = L->blocks - 2u;
-    wj = get_walk(L, s, j);
-    n = wj.n[u];
-    /* Interval i: the last key of block j at or before x (key n+1 is the next block's start). */
-    for (i = 0; i < n; ++i)
-        if ((float)key_frame(L, &wj, j, u, i + 1u) > x) break;
-    refs[1].block = j; refs[1].k = i;
-    if (i > 0) { refs[0].block = j; refs[0].k = i - 1u; }
-    else if (j > 0) { walk wp = get_walk(L, s, j - 1u); refs[0].block = j - 1u; refs[0].k = wp.n[u]; }
-    else refs[0] = refs[1];
-    if (i + 1u <= n) { refs[2].block = j; refs[2].k = i + 1u; }
-    else { refs[2].block = j + 1u; refs[2].k = 0; }
-    if (i + 2u <= n) { refs[3].block = j; refs[3].k = i + 2u; }
-    else if (i + 2u == n + 1u) { refs[3].block = j + 1u; refs[3].k = 0; }
-    else if (j + 2u == L->blocks) refs[3] = refs[2];
-    else {
-        walk wn = get_walk(L, s, j + 1u);
-        if (wn.n[u] > 0) { refs[3].block = j + 1u; refs[3].k = 1; }
-        else { refs[3].block = j + 2u; refs[3].k = 0; }
+    wj = walk_of(L, s, j);
+    n = block_offsets(L, wj, u, offs);
+    sj = block_start(L, j);
+    sj1 = block_start(L, j + 1u);
+    /* Interval i: the last key of block j at or before x. */
+    for (i = 0; i < n && (float)(sj + offs[i + 1]) <= x; ++i) {
     }
-    for (idx = 0; idx < 4; ++idx) {
-        walk w = get_walk(L, s, refs[idx].block);
-        ts->t[idx] = (float)key_frame(L, &w, refs[idx].block, u, refs[idx].k);
-        read_key(L, &w, ts, u, refs[idx].k, ts->v[idx]);
+    set_slot(L, ts, 1, wj, u, j, i, sj + offs[i]);
+    if (i > 0) {
+        set_slot(L, ts, 0, wj, u, j, i - 1u, sj + offs[i - 1u]);
+    } else if (j > 0) {
+        const walk* wp = walk_of(L, s, j - 1u);
+        set_slot(L, ts, 0, wp, u, j - 1u, wp->n[u], block_start(L, j - 1u) + last_offset(L, wp, u));
+    } else {
+        set_slot(L, ts, 0, wj, u, j, 0, sj);
+    }
+    if (i + 1u <= n) {
+        set_slot(L, ts, 2, wj, u, j, i + 1u, sj + offs[i + 1u]);
+        if (i + 2u <= n) {
+            set_slot(L, ts, 3, wj, u, j, i + 2u, sj + offs[i + 2u]);
+        } else {
+            set_slot(L, ts, 3, walk_of(L, s, j + 1u), u, j + 1u, 0, sj1);
+        }
+    } else {
+        const walk* wn = walk_of(L, s, j + 1u);
+        set_slot(L, ts, 2, wn, u, j + 1u, 0, sj1);
+        if (j + 2u == L->blocks) {
+            set_slot(L, ts, 3, wn, u, j + 1u, 0, sj1); /* the clip's last key repeats */
+        } else if (wn->n[u] > 0) {
+            set_slot(L, ts, 3, wn, u, j + 1u, 1, sj1 + key_offset(L, wn, u, 1));
+        } else {
+            set_slot(L, ts, 3, walk_of(L, s, j + 2u), u, j + 2u, 0, block_start(L, j + 2u));
+        }
     }
     ts->valid = 1;
 }
 
-static void eval_track(const track_state* ts, float x, float out[4]) {
+/* Move the four-key window one key forward (sequential playback): one new key read. */
+static void advance(const layout* L, views* s, uint32_t u) {
+    track_state* ts = &s->tracks[u];
+    uint32_t b = ts->ref_block[3], k = ts->ref_k[3];
+    memmove(ts->t, ts->t + 1, 3 * sizeof ts->t[0]);
+    memmove(ts->v, ts->v + 1, 3 * sizeof ts->v[0]);
+    memmove(ts->ref_block, ts->ref_block + 1, 3 * sizeof ts->ref_block[0]);
+    memmove(ts->ref_k, ts->ref_k + 1, 3 * sizeof ts->ref_k[0]);
+    next_key(L, s, u, &b, &k);
+    load_slot(L, s, u, 3, b, k);
+}
+
+/* Cubic coefficients of the window's middle segment (docs/FORMAT.md's Hermite segment
+ * with finite-difference tangents, expanded in powers of s). */
+static void segment_coefficients(track_state* ts) {
     float t0 = ts->t[0], t1 = ts->t[1], t2 = ts->t[2], t3 = ts->t[3];
-    float h = t2 - t1, s = (x - t1) / h, s2 = s * s, s3 = s2 * s;
-    float h00 = 2.0f * s3 - 3.0f * s2 + 1.0f, h10 = s3 - 2.0f * s2 + s;
-    float h01 = -2.0f * s3 + 3.0f * s2, h11 = s3 - s2;
-    float a = h10 * h / (t2 - t0), b = h11 * h / (t3 - t1);
+    float h = t2 - t1, a = h / (t2 - t0), b = h / (t3 - t1);
+    uint32_t c;
+    ts->inv_h = 1.0f / h;
+    for (c = 0; c < ts->dims; ++c) {
+        float p1 = ts->v[1][c], p2 = ts->v[2][c];
+        float m1 = a * (p2 - ts->v[0][c]), m2 = b * (ts->v[3][c] - p1);
+        ts->coef[c][0] = p1;
+        ts->coef[c][1] = m1;
+        ts->coef[c][2] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
+        ts->coef[c][3] = 2.0f * (p1 - p2) + m1 + m2;
+    }
+}
+
+static void eval_track(const track_state* ts, float x, float out[4]) {
+    float s = (x - ts->t[1]) * ts->inv_h;
     uint32_t c;
     for (c = 0; c < ts->dims; ++c)
-        out[c] = h00 * ts->v[1][c] + h01 * ts->v[2][c] + a * (ts->v[2][c] - ts->v[0][c]) + b * (ts->v[3][c] - ts->v[1][c]);
+        out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
 }
 
 static mcd_quat mrp_to_quat(const float p[3]) {
@@ -483,11 +619,27 @@ static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {
     for (k = 0; k < WALK_SLOTS; ++k) ((walk_header*)(s->walks + (size_t)k * walk_slot_size(L->tracks)))->valid = 0;
 }
 
-static void track_value(const layout* L, const views* s, uint32_t u, float x, float out[4]) {
+static void track_value(const layout* L, views* s, uint32_t u, float x, float out[4]) {
     track_state* ts = &s->tracks[u];
-    /* Reuse the cached interval while x stays inside it (sequential playback). */
-    if (!ts->valid || x < ts->t[1] || x > ts->t[2] || (x == ts->t[2] && x < (float)(L->frames - 1u)))
+    float last = (float)(L->frames - 1u);
+    /* Sequential playback: reuse the window while x stays in it, slide it a few keys
+     * forward when x moves on; anything else is a random access. */
+    if (ts->valid && x >= ts->t[1] && x <= ts->t[3]) {
+        int steps = 0;
+        while ((x > ts->t[2] || (x == ts->t[2] && x < last)) && steps < 2 && ts->t[3] > ts->t[2]) {
+            advance(L, s, u);
+            ++steps;
+        }
+        if (x > ts->t[2] || (x == ts->t[2] && x < last)) {
+            locate(L, s, u, x);
+            segment_coefficients(ts);
+        } else if (steps) {
+            segment_coefficients(ts);
+        }
+    } else {
         locate(L, s, u, x);
+        segment_coefficients(ts);
+    }
     eval_track(ts, x, out);
 }
 
@@ -499,6 +651,7 @@ static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags,
     (void)flags;
     read_layout(v->payload, &L);
     scratch_views(scratch, L.nodes, L.tracks, &s);
+    for (i = 0; i < WALK_SLOTS; ++i) s.resolved_block[i] = UINT32_MAX;
     if (fresh) prepare(&L, v, &s);
     for (i = 0; i < L.nodes; ++i) {
         const node_plan* np = &s.plans[i];

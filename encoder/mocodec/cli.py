@@ -1,0 +1,451 @@
+"""The ``mocodec`` command line: encode, decode, info, eval, demo.
+
+Every error a user can cause (a bad BVH, a tolerance that cannot be met, a corrupted asset)
+is printed as one line starting with ``mocodec: error:`` and exits with status 1; usage
+errors exit with 2. Set ``MOCODEC_DEBUG=1`` to see tracebacks.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import __version__, codecs
+
+EPILOG = """\
+examples:
+  mocodec encode walk.bvh run.bvh -o moves.mcd --tolerance 0.5
+  mocodec encode ../mocap/ -o library.mcd --tolerance 1 --units cmu
+  mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
+  mocodec info moves.mcd
+  mocodec eval walk.bvh --tolerance 0.1 --json
+
+The tolerance is a promise: the largest world-space position error of any joint or end site
+on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
+no units: give --units or --cm-per-unit, or mocodec guesses from the skeleton's height and
+says what it assumed.
+"""
+
+
+class CliError(Exception):
+    """A failure to report as one line."""
+
+
+# ----------------------------------------------------------------------------- helpers
+def _progress(total: int, enabled: bool):
+    """A progress callback for multi-clip work: a bar on a terminal, a line per clip
+    otherwise (logs stay readable)."""
+    done = [0]
+    started = time.perf_counter()
+    tty = sys.stderr.isatty()
+
+    def step(name: str) -> None:
+        done[0] += 1
+        if not enabled or total < 2:
+            return
+        elapsed = time.perf_counter() - started
+        if tty:
+            width = 24
+            filled = int(width * done[0] / total)
+            bar = "#" * filled + "." * (width - filled)
+            end = "\n" if done[0] == total else ""
+            print(f"\r  [{bar}] {done[0]}/{total} {name:<16.16s} {elapsed:6.1f}s", end=end,
+                  file=sys.stderr, flush=True)
+        else:
+            print(f"  [{done[0]}/{total}] {name} ({elapsed:.1f}s)", file=sys.stderr, flush=True)
+
+    return step
+
+
+def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
+    paths: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh")
+            if not found:
+                raise CliError(f"{p}: folder holds no .bvh files")
+            paths.extend(found)
+        elif p.exists():
+            paths.append(p)
+        else:
+            raise CliError(f"{p}: no such file or folder")
+    if not paths:
+        raise CliError("no input files")
+    return paths
+
+
+def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
+    from .io import read_bvh
+    from .units import resolve_units
+
+    motions, units = [], []
+    names: set[str] = set()
+    for p in paths:
+        m = read_bvh(p)
+        base, k = m.name, 2
+        while m.name in names:  # two files with one stem: keep both, distinctly named
+            m.name = f"{base}_{k}"
+            k += 1
+        names.add(m.name)
+        motions.append(m)
+        units.append(resolve_units(m.skeleton, args.units, args.cm_per_unit))
+    if not quiet:
+        described = {}
+        for m, u in zip(motions, units):
+            described.setdefault(u.describe(), []).append(m.name)
+        for text, clips in described.items():
+            which = clips[0] if len(clips) == 1 else f"{len(clips)} clips"
+            print(f"{which}: {text}", file=sys.stderr)
+    return motions, units
+
+
+def _parse_option(text: str) -> tuple[str, Any]:
+    if "=" not in text:
+        raise CliError(f"-O expects KEY=VALUE, got {text!r}")
+    key, value = text.split("=", 1)
+    parsed: Any = value
+    try:
+        parsed = json.loads(value)
+    except json.JSONDecodeError:
+        pass
+    if isinstance(parsed, list):
+        parsed = tuple(parsed)
+    return key.replace("-", "_"), parsed
+
+
+def _codec_options(args: argparse.Namespace) -> dict[str, Any]:
+    return dict(_parse_option(o) for o in (args.option or []))
+
+
+def _encode(args: argparse.Namespace):
+    from .encode import encode_motions
+    from .tolerance import Tolerance
+
+    quiet = getattr(args, "quiet", False)
+    paths = _expand_inputs(args.inputs)
+    motions, units = _load(paths, args, quiet or getattr(args, "json", False))
+    tolerance = Tolerance(args.tolerance, args.effector_tolerance)
+    if not quiet and not getattr(args, "json", False):
+        eff = f", end effectors {args.effector_tolerance} cm" if args.effector_tolerance else ""
+        print(f"encoding {len(motions)} clip(s) with codec {args.codec!r}, tolerance "
+              f"{args.tolerance} cm{eff}", file=sys.stderr)
+    progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
+    result = encode_motions(motions, units, args.codec, tolerance, _codec_options(args), progress)
+    return motions, result
+
+
+def _fmt_int(n: float) -> str:
+    return f"{int(round(n)):,}"
+
+
+def _summary_lines(result) -> list[str]:
+    from .metrics import combine
+
+    size = result.size
+    err = combine([c.error for c in result.clips])
+    frames = sum(c.frames for c in result.clips)
+    return [
+        f"clips: {len(result.clips)} ({_fmt_int(frames)} frames, {size.seconds:.1f} s)   "
+        f"codec: {result.codec}   tolerance: {result.tolerance.tolerance_cm} cm",
+        f"size: {_fmt_int(size.asset_bytes)} bytes ({_fmt_int(size.bytes_per_second)} B/s of animation)",
+        f"ratio: {size.ratio_bvh:.1f}:1 vs BVH float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
+        f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
+        f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
+        f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
+        f"encode time: {result.encode_seconds:.1f} s",
+    ]
+
+
+def _clip_table(result) -> list[str]:
+    rows = [f"  {'clip':<14} {'frames':>7} {'bytes':>9} {'max cm':>8} {'p99 cm':>8} {'mean cm':>8}"]
+    for c in result.clips:
+        rows.append(f"  {c.name:<14} {c.frames:>7} {c.stats.get('payload_bytes', 0):>9,} "
+                    f"{c.error.max_cm:>8.4f} {c.error.p99_cm:>8.4f} {c.error.mean_cm:>8.4f}")
+    return rows
+
+
+def _joint_table(motions, result) -> list[str]:
+    names = motions[0].skeleton.names
+    same = all(m.skeleton.names == names for m in motions)
+    if not same:
+        return ["  (clips have different skeletons: per-joint table omitted)"]
+    mx = np.max([c.error.per_node_max_cm for c in result.clips], axis=0)
+    frames = np.array([c.frames for c in result.clips], dtype=np.float64)
+    mean = np.average([c.error.per_node_mean_cm for c in result.clips], axis=0, weights=frames)
+    rows = [f"  {'joint':<20} {'max cm':>8} {'mean cm':>8}"]
+    for i, n in enumerate(names):
+        rows.append(f"  {n:<20} {mx[i]:>8.4f} {mean[i]:>8.4f}")
+    return rows
+
+
+def _result_json(result) -> dict[str, Any]:
+    from .metrics import combine
+
+    return {
+        "codec": result.codec,
+        "tolerance_cm": result.tolerance.tolerance_cm,
+        "effector_tolerance_cm": result.tolerance.effector_tolerance_cm,
+        "size": result.size.as_dict(),
+        "error": combine([c.error for c in result.clips]),
+        "encode_seconds": result.encode_seconds,
+        "clips": [
+            {"name": c.name, "frames": c.frames, "units": c.units.label,
+             "cm_per_unit": c.units.cm_per_unit, **c.error.as_dict(), **c.stats}
+            for c in result.clips
+        ],
+    }
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_encode(args: argparse.Namespace) -> int:
+    _, result = _encode(args)
+    out = Path(args.output)
+    out.write_bytes(result.asset)
+    if args.json:
+        print(json.dumps(_result_json(result), indent=2))
+    elif not args.quiet:
+        print(f"wrote {out}")
+        print("\n".join(_summary_lines(result)))
+    return 0
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    motions, result = _encode(args)
+    if args.output:
+        Path(args.output).write_bytes(result.asset)
+    if args.json:
+        data = _result_json(result)
+        if all(m.skeleton.names == motions[0].skeleton.names for m in motions):
+            data["per_joint"] = {
+                n: {"max_cm": float(mx)} for n, mx in
+                zip(motions[0].skeleton.names,
+                    np.max([c.error.per_node_max_cm for c in result.clips], axis=0))
+            }
+        print(json.dumps(data, indent=2))
+        return 0
+    print("\n".join(_summary_lines(result)))
+    print("\nper clip:")
+    print("\n".join(_clip_table(result)))
+    print("\nper joint (max over clips):")
+    print("\n".join(_joint_table(motions, result)))
+    return 0
+
+
+def cmd_decode(args: argparse.Namespace) -> int:
+    from .decode import decode_clip
+    from .io import write_bvh
+    from .runtime import Asset
+
+    asset = Asset(_read_asset(args.asset))
+    clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
+    out = Path(args.output)
+    if len(clips) > 1:
+        if out.suffix.lower() == ".bvh":
+            raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
+        out.mkdir(parents=True, exist_ok=True)
+        targets = [out / f"{c.name}.bvh" for c in clips]
+    else:
+        if out.is_dir():
+            out = out / f"{clips[0].name}.bvh"
+        targets = [out]
+    progress = _progress(len(clips), not args.quiet)
+    for c, target in zip(clips, targets):
+        write_bvh(decode_clip(asset, c.index), target, precision=args.precision)
+        progress(c.name)
+        if not args.quiet:
+            print(f"wrote {target} ({c.frame_count} frames, decoded by the C runtime)")
+    return 0
+
+
+def _read_asset(path: str) -> bytes:
+    p = Path(path)
+    if not p.exists():
+        raise CliError(f"{p}: no such file")
+    return p.read_bytes()
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    from .container import CODEC_NAMES, read_summary
+    from .runtime import Asset, validate
+
+    data = _read_asset(args.asset)
+    summary = read_summary(data)
+    status = validate(data)
+    asset = Asset(data)
+    clips = []
+    for c in asset.clips:
+        meta = summary.meta.get("clips", {}).get(c.name, {})
+        raw = meta.get("raw_bvh_bytes")
+        clips.append({
+            "name": c.name, "codec": CODEC_NAMES.get(c.codec, str(c.codec)), "frames": c.frame_count,
+            "frame_rate": round(float(c.frame_rate), 4), "duration_s": round(float(c.duration), 4),
+            "skeleton": c.skeleton, "nodes": c.node_count,
+            "max_error_cm": meta.get("max_error_cm"), "mean_error_cm": meta.get("mean_error_cm"),
+            "raw_bvh_bytes": raw,
+        })
+    raw_total = sum(c["raw_bvh_bytes"] or 0 for c in clips)
+    info = {
+        "file": str(args.asset), "bytes": len(data), "format": f"{summary.version[0]}.{summary.version[1]}",
+        "valid": status.name, "resident_bytes": asset.resident_size, "scratch_bytes": asset.scratch_size,
+        "sections": [{"kind": k, "version": v, "offset": o, "bytes": s} for k, v, o, s in summary.sections],
+        "skeletons": [{"nodes": asset.skeleton_info(i)[0], "cm_per_unit": asset.skeleton_info(i)[1]}
+                      for i in range(asset.skeleton_count)],
+        "clips": clips, "encoder": summary.meta.get("encoder"), "settings": summary.meta.get("settings"),
+        "ratio_bvh": raw_total / len(data) if raw_total else None,
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{info['file']}: mocodec asset, format {info['format']}, {len(data):,} bytes, {status.name.lower()}")
+    if info["encoder"]:
+        print(f"  written by {info['encoder']}, settings {json.dumps(info['settings'])}")
+    print(f"  memory to sample: {info['resident_bytes']:,} B resident + {info['scratch_bytes']:,} B scratch per thread")
+    if info["ratio_bvh"]:
+        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs BVH float32 channels")
+    print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))
+    for i, s in enumerate(info["skeletons"]):
+        print(f"  skeleton {i}: {s['nodes']} nodes, {s['cm_per_unit']:g} cm per unit")
+    print(f"  {'clip':<16} {'codec':<8} {'frames':>7} {'fps':>8} {'seconds':>8} {'skel':>4} {'max cm':>8}")
+    for c in clips:
+        err = f"{c['max_error_cm']:.4f}" if c["max_error_cm"] is not None else "-"
+        print(f"  {c['name']:<16} {c['codec']:<8} {c['frames']:>7} {c['frame_rate']:>8.3f} "
+              f"{c['duration_s']:>8.3f} {c['skeleton']:>4} {err:>8}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Encode the bundled sample clips, decode them through the C runtime, report."""
+    samples = Path(__file__).resolve().parent / "samples"
+    out_dir = Path(args.output)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    asset_path = out_dir / "samples.mcd"
+    ns = argparse.Namespace(inputs=[str(samples)], codec=args.codec, tolerance=args.tolerance,
+                            effector_tolerance=None, units=None, cm_per_unit=None, option=None,
+                            quiet=False, json=False)
+    motions, result = _encode(ns)
+    asset_path.write_bytes(result.asset)
+    print(f"encoded {len(motions)} sample clips ({samples}) -> {asset_path}")
+    print("\n".join(_summary_lines(result)))
+    print("\nper clip:")
+    print("\n".join(_clip_table(result)))
+    dec = argparse.Namespace(asset=str(asset_path), output=str(out_dir / "decoded"), clip=None,
+                             precision=6, quiet=True)
+    cmd_decode(dec)
+    print(f"\ndecoded every clip through the C runtime back to BVH in {out_dir / 'decoded'}/")
+    ok = result.max_error_cm <= args.tolerance
+    print(f"tolerance {args.tolerance} cm {'met' if ok else 'NOT met'} on every frame of every clip")
+    return 0 if ok else 1
+
+
+# ----------------------------------------------------------------------------- parser
+def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="BVH files or folders of BVH files (one clip each)")
+    p.add_argument("--codec", default="spline", choices=codecs.available(),
+                   help="codec (default: %(default)s)")
+    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
+                   help="max world-space position error of any joint or end site on any frame, "
+                        "in cm (default: %(default)s)")
+    p.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
+                   help="a tighter bound for hands, feet, head and end sites, in cm")
+    units = p.add_mutually_exclusive_group()
+    units.add_argument("--units", choices=["cm", "m", "mm", "in", "cmu"],
+                       help="the BVH files' length unit (cmu: CMU mocap, 5.6444 cm); "
+                            "default: guessed from the skeleton's height")
+    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per file unit")
+    p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
+                   help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mocodec",
+        description="Compress motion capture (BVH) into compact .mcd assets that the mocodec C "
+                    "runtime samples inside a game engine, with a promised max error.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"mocodec {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("encode", help="encode BVH clips into one .mcd asset",
+                       description="Encode BVH clips into one asset; every clip stays addressable by name.")
+    _add_encode_arguments(p)
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mcd", help="asset to write")
+    p.set_defaults(func=cmd_encode)
+
+    p = sub.add_parser("decode", help="decode an asset back to BVH through the C runtime",
+                       description="Decode clips through the C runtime and write BVH with the "
+                                   "original hierarchy and channel layout.")
+    p.add_argument("asset", metavar="ASSET.mcd")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="a .bvh file (one clip) or a folder (one file per clip)")
+    p.add_argument("--clip", metavar="NAME", help="decode only this clip")
+    p.add_argument("--precision", type=int, default=6, help="decimals written (default: %(default)s)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_decode)
+
+    p = sub.add_parser("info", help="describe an asset: clips, sizes, the error the encoder reached",
+                       description="Validate an asset and describe it.")
+    p.add_argument("asset", metavar="ASSET.mcd")
+    p.add_argument("--json", action="store_true", help="print as JSON")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("eval", help="encode, decode through C, report sizes and errors",
+                       description="Encode, decode through the C runtime, and report sizes, "
+                                   "ratios in both conventions and max/p99/mean error per clip and joint.")
+    _add_encode_arguments(p)
+    p.add_argument("-o", "--output", metavar="OUT.mcd", help="also write the asset")
+    p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
+                       description="Encode the bundled CMU sample clips, decode them through the C "
+                                   "runtime, print ratio and error.")
+    p.add_argument("--codec", default="spline", choices=codecs.available())
+    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
+    p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
+                   help="where to write the asset and decoded BVH (default: %(default)s)")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("mocodec: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # one line for the user; the traceback on request
+        if os.environ.get("MOCODEC_DEBUG"):
+            raise
+        print(f"mocodec: error: {_describe(exc)}", file=sys.stderr)
+        return 1
+
+
+def _describe(exc: Exception) -> str:
+    from .io import BVHError
+
+    if isinstance(exc, (CliError, BVHError)):
+        return str(exc)
+    if isinstance(exc, OSError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
+    text = str(exc) or type(exc).__name__
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+if __name__ == "__main__":
+    sys.exit(main())

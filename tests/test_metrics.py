@@ -1,0 +1,76 @@
+"""The metrics every codec and benchmark uses."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocodec.io import read_bvh
+from mocodec.kinematics import forward_kinematics
+from mocodec.metrics import ErrorMetric, combine, size_report
+from mocodec.rotations import quat_from_axis_angle, quat_multiply
+
+
+def _world(m):
+    return forward_kinematics(m.skeleton, m.rotations, m.translations)
+
+
+def test_identical_motion_has_no_error(sample_paths):
+    m = read_bvh(sample_paths[0])
+    w = _world(m)
+    r = ErrorMetric(5.6444, 25.0).evaluate(m.skeleton, w, w, m.rotations, m.rotations)
+    assert r.max_cm == 0 and r.mean_cm == 0 and r.shell_max_cm == 0
+    assert r.angle_max_deg < 1e-9
+    assert r.fraction_under(0.0) == 1.0
+
+
+def test_known_offset_gives_known_errors(sample_paths):
+    m = read_bvh(sample_paths[0])
+    rot, pos = _world(m)
+    shifted = pos.copy()
+    shifted[:, 5] += [1.0, 0.0, 0.0]      # one node one unit off on every frame
+    shifted[10, 7] += [0.0, 2.0, 0.0]     # another two units off on one frame
+    metric = ErrorMetric(cm_per_unit=2.0, height_units=100.0)
+    r = metric.evaluate(m.skeleton, (rot, pos), (rot, shifted))
+    n, f = m.skeleton.node_count, m.frame_count
+    assert r.max_cm == pytest.approx(4.0)
+    assert (r.worst_frame, r.worst_node) == (10, 7)
+    assert r.per_node_max_cm[5] == pytest.approx(2.0)
+    # seed 000 eq. 25-26: mean over frames per joint, then over joints.
+    assert r.mean_cm == pytest.approx((2.0 + 4.0 / f) / n)
+    assert r.max_pct_height == pytest.approx(2.0)
+    assert r.fraction_under(1.0) == pytest.approx(1 - (f + 1) / (f * n))
+
+
+def test_shell_metric_sees_rotation_error(sample_paths):
+    """A rotation error with no position error shows in the shell metric: a vertex 3 cm
+    away moves by 2 * 3 cm * sin(angle / 2)."""
+    m = read_bvh(sample_paths[0])
+    rot, pos = _world(m)
+    angle = np.radians(10)
+    turned = rot.copy()
+    turned[:, 3] = quat_multiply(rot[:, 3], quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), angle))
+    r = ErrorMetric(5.6444, 25.0, shell_cm=3.0).evaluate(m.skeleton, (rot, pos), (turned, pos))
+    assert r.max_cm == 0
+    assert r.shell_max_cm == pytest.approx(2 * 3.0 * np.sin(angle / 2), rel=1e-6)
+
+
+def test_sizes_in_both_conventions(sample_paths):
+    ms = [read_bvh(p) for p in sample_paths]
+    s = size_report(ms, 10_000)
+    frames = sum(m.frame_count for m in ms)
+    assert s.raw_bvh_bytes == frames * 96 * 4
+    assert s.raw_acl_bytes == frames * 38 * 40
+    assert s.ratio_bvh == pytest.approx(frames * 96 * 4 / 10_000)
+    assert s.bytes_per_second == pytest.approx(10_000 / sum(m.frame_count * m.frame_time for m in ms))
+
+
+def test_combine_over_clips(sample_paths):
+    ms = [read_bvh(p) for p in sample_paths[:2]]
+    reports = []
+    for k, m in enumerate(ms):
+        rot, pos = _world(m)
+        off = pos.copy()
+        off[:, 0, 0] += k + 1.0
+        reports.append(ErrorMetric(1.0, 25.0).evaluate(m.skeleton, (rot, pos), (rot, off)))
+    c = combine(reports)
+    assert c["max_cm"] == pytest.approx(2.0)
