@@ -1,7 +1,7 @@
 """cffi build script: compiles runtime_c/src/*.c into the extension `mocodec_runtime._native`.
 
-The C declarations are read from runtime_c/include/mocodec.h itself (preprocessor lines
-dropped), so the binding cannot drift from the header.
+The C declarations are read from runtime_c/include/mocodec.h and runtime_c/src/entropy.h
+themselves (preprocessor lines dropped), so the binding cannot drift from the headers.
 """
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ from cffi import FFI
 HERE = Path(__file__).resolve().parent
 RUNTIME = (HERE / ".." / ".." / "runtime_c").resolve()
 HEADER = RUNTIME / "include" / "mocodec.h"
+# The entropy coder is internal to the runtime but the encoder runs it too (one implementation).
+ENTROPY_HEADER = RUNTIME / "src" / "entropy.h"
 
 # Glue that only loops over the public API, so Python pays one call per clip, not per frame.
 GLUE = """
@@ -33,9 +35,9 @@ int mcdpy_sample_many(const mcd_asset* asset, uint32_t clip, const float* times,
 """
 
 
-def header_cdef() -> str:
+def header_cdef(header: Path = HEADER) -> str:
     """The header's declarations in the form cffi's cdef accepts."""
-    text = HEADER.read_text()
+    text = header.read_text()
     text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
     text = re.sub(r"#ifdef __cplusplus.*?#endif", "", text, flags=re.S)
     lines = []
@@ -50,9 +52,10 @@ def header_cdef() -> str:
 
 ffibuilder = FFI()
 ffibuilder.cdef(header_cdef() + GLUE)
+ffibuilder.cdef(header_cdef(ENTROPY_HEADER))
 ffibuilder.set_source(
     "mocodec_runtime._native",
-    '#include "mocodec.h"\n' + GLUE_SOURCE,
+    '#include "mocodec.h"\n#include "entropy.h"\n' + GLUE_SOURCE,
     # setuptools wants paths relative to the project directory.
     sources=[os.path.relpath(p, HERE) for p in sorted((RUNTIME / "src").glob("*.c"))],
     include_dirs=[os.path.relpath(RUNTIME / d, HERE) for d in ("include", "src")],

@@ -271,7 +271,8 @@ static mcd_result check_clips(mcd_asset* a, uint32_t clip_section) {
         if (!mcd_finite(rate) || !(rate > 0.0f) || rate > MCD_MAX_FRAME_RATE) return MCD_ERROR_MALFORMED;
         expect = (float)((double)(mcd_rd_u32(r + 24) - 1u) / (double)rate);
         tol = 1e-4f * (expect > 1.0f ? expect : 1.0f);
-        if (!mcd_finite(duration) || duration < expect - tol || duration > expect + tol) return MCD_ERROR_MALFORMED;
+        /* expect overflows to inf for a tiny rate: then no finite duration matches (and tol is inf). */
+        if (!mcd_finite(expect) || !mcd_finite(duration) || duration < expect - tol || duration > expect + tol) return MCD_ERROR_MALFORMED;
         if (mcd_rd_u32(r + 36) != 0 || mcd_rd_u32(r + 40) != 0 || mcd_rd_u32(r + 44) != 0) return MCD_ERROR_MALFORMED;
         res = resolve_clip(a, i, &v, &ops);
         if (res != MCD_OK) return res;

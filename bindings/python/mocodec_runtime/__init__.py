@@ -226,3 +226,60 @@ class Asset:
         times = np.asarray(frames, dtype=np.float64) / info.frame_rate
         poses = self.sample_times(info.index, times, SAMPLE_WORLD if world else 0)
         return poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)
+
+
+# ---------------------------------------------------------------- entropy coder
+# The runtime's lossless back-end (docs/FORMAT.md, "Entropy coder"), exposed so the encoder's
+# codecs write their streams with the very code mcd_open decodes them with.
+__all__ += ["ENTROPY_MAX_ABS", "ENTROPY_MAX_CHANNELS", "entropy_decode", "entropy_encode"]
+
+ENTROPY_MAX_ABS = lib.MCD_ENTROPY_MAX_ABS
+ENTROPY_MAX_CHANNELS = lib.MCD_ENTROPY_MAX_CHANNELS
+
+
+def _entropy_arguments_fit(count: int, channels: int) -> bool:
+    """True when count and channels fit the C side's uint32 (it checks the rest)."""
+    return 0 <= count <= 0xFFFFFFFF and 0 <= channels <= 0xFFFFFFFF
+
+
+def entropy_encode(values: np.ndarray, channels: int = 1) -> bytes:
+    """Entropy-code integers (``|v| <= 2**30 - 1``, any integer dtype, flattened in C order);
+    value ``i`` uses the statistics of channel ``i % channels`` (1 ... 16). Raises
+    :class:`RuntimeResultError` (``INVALID_ARGUMENT``) for a value out of range or a bad
+    channel count, ``TypeError`` for non-integer values."""
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "iu":
+        raise TypeError(f"entropy_encode needs integers, got dtype {arr.dtype}")
+    flat = arr.ravel()
+    # Checked before the cast to int32, which would wrap larger values silently.
+    if flat.size and (flat.min() < -ENTROPY_MAX_ABS or flat.max() > ENTROPY_MAX_ABS):
+        raise RuntimeResultError(lib.MCD_ERROR_INVALID_ARGUMENT, "entropy_encode: value out of range")
+    if not _entropy_arguments_fit(flat.size, channels):
+        raise RuntimeResultError(lib.MCD_ERROR_INVALID_ARGUMENT, "entropy_encode")
+    v = np.ascontiguousarray(flat, dtype=np.int32)
+    ptr = ffi.cast("int32_t*", ffi.from_buffer(v))
+    size = ffi.new("size_t*")
+    # Real data takes a few bytes per value; the worst-case bound is 55, so try small first.
+    bound = int(lib.mcd_entropy_bound(v.size))
+    for capacity in (min(bound, 8 * v.size + 64), bound):
+        out = ffi.new("uint8_t[]", max(capacity, 1))
+        code = lib.mcd_entropy_encode(ptr, v.size, channels, out, capacity, size)
+        if code != lib.MCD_ERROR_BUFFER_TOO_SMALL:
+            break
+    _check(code, "mcd_entropy_encode")
+    return bytes(ffi.buffer(out, size[0]))
+
+
+def entropy_decode(data: bytes, count: int, channels: int = 1) -> np.ndarray:
+    """Decode exactly ``count`` values (``int32`` array) from a stream of
+    :func:`entropy_encode` with the same ``channels``. Raises :class:`RuntimeResultError`:
+    ``MALFORMED`` when the stream ends early, has bytes left over or is corrupt,
+    ``INVALID_ARGUMENT`` for a bad channel count."""
+    if not _entropy_arguments_fit(count, channels):
+        raise RuntimeResultError(lib.MCD_ERROR_INVALID_ARGUMENT, "entropy_decode")
+    out = np.empty(count, dtype=np.int32)
+    code = lib.mcd_entropy_decode(
+        ffi.from_buffer(data), len(data), channels, ffi.cast("int32_t*", ffi.from_buffer(out)), count
+    )
+    _check(code, "mcd_entropy_decode")
+    return out

@@ -1,0 +1,32 @@
+# mocodec: the two set-up commands of README.md, and what they stand on.
+#   make demo   encode + decode the bundled sample clips through the C runtime, print ratio and error
+#   make test   every test: C (gcc, clang, ASan/UBSan, fuzz smoke), Python, engine bindings
+# Both install what they need (a Python venv in .venv; clang and the engine tools from apt).
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+FUZZ_SECONDS ?= 20
+
+.PHONY: demo test venv test-c test-python test-engines bench clean
+
+$(VENV)/.installed: encoder/pyproject.toml bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install -q --upgrade pip
+	@$(PY) -m pip install -q ./bindings/python
+	@$(PY) -m pip install -q -e './encoder[test]'
+	@touch $@
+
+venv: $(VENV)/.installed
+
+demo: venv
+	$(VENV)/bin/mocodec demo -o out/demo
+
+test: venv
+	@bash tests/run_all.sh
+
+bench: venv
+	$(PY) bench/run_bench.py
+
+clean:
+	rm -rf $(VENV) out runtime_c/build bench/results/*.mcd bench/results/sample_speed

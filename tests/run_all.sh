@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Every test of the project, as `make test` and CI run it. Installs the system tools it needs
+# (clang for the second compiler, sanitizers and libFuzzer) when they are missing and it can.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+command -v clang >/dev/null || need_apt+=(clang)
+[ -n "$(ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a 2>/dev/null)" ] || need_apt+=(libclang-rt-14-dev)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+    echo "== installing ${need_apt[*]} (apt)"
+    apt-get update -qq >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
+  else
+    echo "!! missing ${need_apt[*]} and cannot install them (not root or no apt)" >&2
+    exit 1
+  fi
+fi
+
+failed=0
+step() { echo; echo "== $*"; }
+
+step "C runtime: gcc, clang, ASan+UBSan, header as C99 and C++, no allocation"
+make -s -C runtime_c test || failed=1
+
+step "C runtime: fuzz smoke (${FUZZ_SECONDS:-20} s each target)"
+make -s -C runtime_c fuzz FUZZ_SECONDS="${FUZZ_SECONDS:-20}" || failed=1
+
+step "Python: encoder, binding, CLI, cross-checks with the C runtime"
+.venv/bin/python -m pytest -q -ra tests || failed=1
+
+if [ -x bindings/run_engine_tests.sh ]; then
+  step "Engine bindings: C# (mono NUnit), Godot 3 headless, GDExtension build"
+  bindings/run_engine_tests.sh || failed=1
+fi
+
+echo
+if [ "$failed" = 0 ]; then echo "all test suites passed"; else echo "SOME TEST SUITES FAILED"; fi
+exit "$failed"
