@@ -61,6 +61,29 @@ def _encode_spline(
     return out
 
 
+def _encode_neural(
+    motions: list[Motion],
+    cm_per_unit: list[float],
+    tolerance: Tolerance,
+    check: CheckFn,
+    options: dict[str, Any],
+    progress: ProgressFn | None = None,
+) -> CodecOutput:
+    from .neural import NeuralSettings, encode_clip
+
+    settings = NeuralSettings(tolerance=tolerance, **options)
+    out = CodecOutput(payloads=[])
+    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
+        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload))
+        out.payloads.append(r.payload)
+        out.stats.append({"frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
+                          "stages": r.stages, "encode_seconds": r.seconds})
+        if progress:
+            progress(m.name)
+    return out
+
+
 _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
     "spline": _encode_spline,
+    "neural": _encode_neural,
 }

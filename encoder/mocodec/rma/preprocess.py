@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import rotations as R
+from ..codecs.spline import _matrix_to_quat  # robust matrix -> quaternion, shared with spline
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton
 
@@ -319,30 +320,40 @@ def aligned_positions_from_markers(markers: np.ndarray, layout: MarkerLayout,
     return pos
 
 
-def _matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions (x y z w) of rotation matrices (K, 3, 3), branch on the largest of
-    (trace, diagonal) so the divisor never gets small."""
-    t = np.trace(m, axis1=1, axis2=2)
-    cand = np.stack((m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], t), axis=1)
-    k = np.argmax(cand, axis=1)
-    q = np.empty((len(m), 4))
-    sel = k == 3
-    if sel.any():
-        a = m[sel]
-        r = np.sqrt(1.0 + t[sel]) * 2.0
-        q[sel] = np.stack(((a[:, 2, 1] - a[:, 1, 2]) / r, (a[:, 0, 2] - a[:, 2, 0]) / r,
-                           (a[:, 1, 0] - a[:, 0, 1]) / r, 0.25 * r), axis=1)
-    for case in range(3):
-        sel = k == case
-        if not sel.any():
-            continue
-        a = m[sel]
-        i, j, kk = case, (case + 1) % 3, (case + 2) % 3
-        r = np.sqrt(np.maximum(1.0 + a[:, i, i] - a[:, j, j] - a[:, kk, kk], 1e-30)) * 2.0
-        out = np.empty((len(a), 4))
-        out[:, i] = 0.25 * r
-        out[:, j] = (a[:, j, i] + a[:, i, j]) / r
-        out[:, kk] = (a[:, kk, i] + a[:, i, kk]) / r
-        out[:, 3] = (a[:, kk, j] - a[:, j, kk]) / r
-        q[sel] = out
-    return R.quat_normalize(q)
+
+def library_layout(skeletons: list[Skeleton], cm_per_unit: float, min_bone_cm: float = 5.0,
+                   marker_cm: float = 10.0) -> MarkerLayout:
+    """One marker layout for clips whose skeletons share a layout (names, parents, channels)
+    but not bone lengths (several CMU subjects), so one group PCA can span them: a bone gets
+    marker ``b`` if it is short in any of the skeletons."""
+    first = skeletons[0]
+    for sk in skeletons[1:]:
+        if not sk.same_layout(first):
+            raise ValueError("skeletons differ in layout; analyse them separately")
+    lengths = np.stack([np.linalg.norm(sk.offsets, axis=1) for sk in skeletons])
+    offsets = first.offsets.copy()
+    for i in range(first.node_count):
+        offsets[i] = skeletons[int(np.argmin(lengths[:, i]))].offsets[i]
+    proxy = Skeleton(list(first.names), first.parents, offsets, first.channels, first.is_end_site)
+    # Rest directions differ slightly between subjects: use layout_for() per clip.
+    return marker_layout(proxy, cm_per_unit, min_bone_cm, marker_cm)
+
+
+def layout_for(skeleton: Skeleton, shared: MarkerLayout) -> MarkerLayout:
+    """``shared``'s marker structure with rest directions and marker distances of ``skeleton``
+    (the same joints, markers and b/c choices; only the geometry of this subject)."""
+    r_axis = shared.rest_axis.copy()
+    uses_child = shared.b_length == 0
+    # a' markers are child positions: their rest direction is this subject's bone; b markers
+    # keep the shared direction (any fixed direction works, forward and inverse agree on it).
+    child = shared.position_nodes[shared.axis_marker[uses_child]]
+    off = skeleton.offsets[child]
+    r_axis[uses_child] = off / np.linalg.norm(off, axis=1, keepdims=True)
+    r_side = np.empty_like(r_axis)
+    for k in range(len(r_axis)):
+        helper = np.eye(3)[int(np.argmin(np.abs(r_axis[k])))]
+        side = np.cross(r_axis[k], helper)
+        r_side[k] = side / np.linalg.norm(side)
+    return MarkerLayout(shared.position_nodes, shared.position_source, shared.joints,
+                        shared.axis_marker, shared.side_marker, r_axis, r_side,
+                        shared.b_length, shared.c_length, shared.marker_count)
