@@ -11,7 +11,7 @@
  *     mcd_asset asset;
  *     if (mcd_open(bytes, size, 0, NULL, 0, &asset) != MCD_OK) ...;   // validates first
  *     size_t n = mcd_scratch_size(&asset);
- *     void* scratch = malloc(n);                // once per thread, not per frame
+ *     void* scratch = aligned_alloc(16, n);     // once per thread, not per frame; 16-aligned
  *     mcd_scratch_init(&asset, scratch, n);
  *     mcd_transform pose[64];
  *     mcd_sample(&asset, clip, t, MCD_SAMPLE_LOOP, pose, 64, scratch);

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Builds the Godot 3 GDNative library (runtime compiled in) against the gdnative-sys 0.11.3
+# headers and runs project/test.gd in the real headless engine, godot3-server. Prints the
+# test's "godot3: N passed, N failed" line and fails when it fails, times out or prints none.
+set -euo pipefail
+HERE="$(cd "$(dirname "$0")" && pwd)"
+source "$HERE/../../common.sh"
+PROJECT="$HERE/project"
+GODOT="${GODOT3:-godot3-server}"
+command -v "$GODOT" >/dev/null || { echo "godot3: $GODOT not found (apt-get install godot3-server)" >&2; exit 2; }
+
+"$HERE/build.sh" > /dev/null
+rm -rf "$PROJECT/data"
+mcd_test_data "$PROJECT/data" >&2
+
+# A script error makes Godot 3 wait forever instead of exiting: always bound the run. HOME is
+# redirected so the engine's settings folder lands in the build tree, not the user's home.
+log="$MCD_BUILD/godot3_test.log"
+mkdir -p "$MCD_BUILD/godot3_home"
+set +e
+HOME="$MCD_BUILD/godot3_home" timeout "${GODOT_TIMEOUT:-300}" "$GODOT" --no-window --path "$PROJECT" -s test.gd > "$log" 2>&1
+rc=$?
+set -e
+grep -E "^(FAIL|godot3)|SCRIPT ERROR|Parse Error" "$log" || true
+if [ $rc -eq 124 ]; then
+    echo "godot3: timed out (a script error hangs Godot 3); log: $log"
+    echo "godot3: 0 passed, 1 failed"
+    exit 1
+fi
+if ! grep -qE "^godot3: [0-9]+ passed, [0-9]+ failed" "$log"; then
+    tail -n 40 "$log"
+    echo "godot3: the test printed no result (exit $rc)"
+    echo "godot3: 0 passed, 1 failed"
+    exit 1
+fi
+exit $rc

@@ -1,0 +1,83 @@
+/* A minimal test harness for the C runtime: no external framework, so the suite builds with
+ * nothing but a C compiler (plus pthreads for the thread test). */
+#ifndef MCD_TEST_HARNESS_H
+#define MCD_TEST_HARNESS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mocodec.h"
+
+/* ---------------------------------------------------------------- checks */
+/* Each failed check prints file:line and counts against the running test. The sweeps run
+ * millions of checks, so printing stops after a few failures per test but counting does not. */
+void mcd_test_check(int ok, const char* file, int line, const char* expr);
+void mcd_test_check_result(mcd_result got, mcd_result want, const char* file, int line, const char* expr);
+void mcd_test_fail(const char* file, int line, const char* fmt, ...);
+void mcd_test_check_msg(int ok, const char* file, int line, const char* fmt, ...);
+/* Marks the running test as skipped (with the reason printed) unless it already failed. */
+void mcd_test_skip(const char* reason);
+/* Failed checks of the running test so far: lets a sweep stop early once it is clearly broken. */
+unsigned long mcd_test_failures(void);
+
+#define CHECK(cond) mcd_test_check((cond) != 0, __FILE__, __LINE__, #cond)
+#define CHECK_RESULT(expr, want) mcd_test_check_result((expr), (want), __FILE__, __LINE__, #expr)
+#define FAIL(...) mcd_test_fail(__FILE__, __LINE__, __VA_ARGS__)
+/* A check whose failure message is formatted (printf-style) from the values involved. */
+#define CHECK_MSG(cond, ...) mcd_test_check_msg((cond) != 0, __FILE__, __LINE__, __VA_ARGS__)
+
+/* ---------------------------------------------------------------- test data */
+/* Folders given on the command line or at compile time (MCD_TEST_GOLDEN_DIR, ...). */
+const char* mcd_test_golden_dir(void);
+const char* mcd_test_regression_dir(void);
+
+typedef struct mcd_test_file {
+    char* path;
+    uint8_t* data; /* exactly `size` bytes, malloc'd: ASan sees any read past the end */
+    size_t size;
+} mcd_test_file;
+
+/* Reads a whole file; returns 0 and fails the running test when it cannot. */
+int mcd_test_read_file(const char* path, mcd_test_file* out);
+void mcd_test_free_file(mcd_test_file* f);
+
+/* Every regular file in `dir` whose name ends with `suffix` (sorted by name). Returns the count;
+ * a missing folder fails the running test. Free with mcd_test_free_files. */
+size_t mcd_test_list_files(const char* dir, const char* suffix, mcd_test_file** out);
+void mcd_test_free_files(mcd_test_file* files, size_t count);
+
+/* The golden assets, each opened; fails the running test (and returns 0) when there are none,
+ * so a wrong path cannot make the golden tests pass vacuously. */
+typedef struct mcd_golden {
+    mcd_test_file file;
+    mcd_asset asset;
+    void* resident; /* what mcd_open asked for, or NULL */
+} mcd_golden;
+size_t mcd_test_load_golden(mcd_golden** out);
+void mcd_test_free_golden(mcd_golden* g, size_t count);
+
+/* ---------------------------------------------------------------- helpers */
+/* 16-byte aligned scratch initialised for `asset` (the API requires the alignment). */
+void* mcd_test_scratch(const mcd_asset* asset);
+void mcd_test_free_scratch(void* scratch);
+
+/* Our own CRC-32 (zlib's), written from docs/FORMAT.md, so the checksum is checked independently
+ * of the library's; and a helper that rewrites the header checksum after a test edits a field. */
+uint32_t mcd_test_crc32(const uint8_t* data, size_t size);
+void mcd_test_fix_crc(uint8_t* asset, size_t size);
+
+uint32_t mcd_test_rd_u32(const uint8_t* p);
+void mcd_test_wr_u32(uint8_t* p, uint32_t v);
+void mcd_test_wr_u16(uint8_t* p, uint16_t v);
+
+/* Deterministic pseudo-random numbers (fixed seeds keep failures reproducible). */
+uint32_t mcd_test_rand(uint32_t* state);
+void mcd_test_shuffle(uint32_t* items, size_t count, uint32_t seed);
+
+/* Times at which a clip shows its integer frames and the midpoints between them, in order:
+ * 2 * frame_count - 1 of them. Caller frees. */
+float* mcd_test_frame_times(const mcd_clip_info* info, size_t* out_count);
+
+int mcd_test_pose_finite(const mcd_transform* pose, uint32_t count);
+
+#endif /* MCD_TEST_HARNESS_H */

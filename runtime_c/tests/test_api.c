@@ -1,0 +1,160 @@
+/* One check per invalid argument of every entry point (mocodec.h documents each failure). */
+#define _POSIX_C_SOURCE 200809L
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "harness.h"
+
+static void check_result_strings(void) {
+    int r, k;
+    for (r = MCD_OK; r <= MCD_ERROR_NOT_FOUND; ++r) {
+        const char* s = mcd_result_string((mcd_result)r);
+        CHECK(s != NULL && s[0] != 0);
+        for (k = MCD_OK; k < r; ++k) CHECK(strcmp(s, mcd_result_string((mcd_result)k)) != 0);
+    }
+    CHECK(mcd_result_string((mcd_result)999) != NULL);
+    CHECK(mcd_version() == (uint32_t)MCD_VERSION);
+}
+
+static void check_validate_open(const mcd_test_file* f) {
+    mcd_asset a;
+    size_t resident;
+    CHECK_RESULT(mcd_validate(NULL, f->size, 0), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_validate(f->data, f->size, 0x2u), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_validate(f->data, f->size, 0x80000000u), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(NULL, f->size, 0, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0, NULL, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0x4u, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_resident_size(NULL, f->size, 0, &resident), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0x2u, &resident), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0, &resident), MCD_OK);
+    if (resident > 0) {
+        /* Asked-for resident memory that is missing or short (the golden spline assets need none). */
+        CHECK_RESULT(mcd_open(f->data, f->size, 0, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
+    }
+}
+
+static void check_queries(const mcd_asset* a) {
+    mcd_clip_info ci;
+    mcd_skeleton_info si;
+    mcd_node_info ni;
+    uint32_t clips = mcd_clip_count(a), skeletons = mcd_skeleton_count(a), found = 12345, last;
+    mcd_asset empty;
+    memset(&empty, 0, sizeof empty);
+    CHECK(mcd_clip_count(NULL) == 0);
+    CHECK(mcd_skeleton_count(NULL) == 0);
+    CHECK(mcd_scratch_size(NULL) == 0);
+    CHECK_RESULT(mcd_get_clip_info(NULL, 0, &ci), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_clip_info(&empty, 0, &ci), MCD_ERROR_INVALID_ARGUMENT); /* never opened */
+    CHECK_RESULT(mcd_get_clip_info(a, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_clip_info(a, clips, &ci), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_clip_info(a, UINT32_MAX, &ci), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_skeleton_info(NULL, 0, &si), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_skeleton_info(a, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_skeleton_info(a, skeletons, &si), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_node_info(NULL, 0, 0, &ni), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_node_info(a, 0, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_node_info(a, skeletons, 0, &ni), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_skeleton_info(a, skeletons - 1u, &si), MCD_OK);
+    CHECK_RESULT(mcd_get_node_info(a, skeletons - 1u, si.node_count, &ni), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_node_info(a, skeletons - 1u, UINT32_MAX, &ni), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_get_node_info(a, skeletons - 1u, si.node_count - 1u, &ni), MCD_OK);
+    CHECK_RESULT(mcd_find_clip(NULL, "x", &found), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_find_clip(a, NULL, &found), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_get_clip_info(a, clips - 1u, &ci), MCD_OK);
+    CHECK_RESULT(mcd_find_clip(a, ci.name, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_find_clip(a, "no such clip", &found), MCD_ERROR_NOT_FOUND);
+    CHECK_RESULT(mcd_find_clip(a, "", &found), MCD_ERROR_NOT_FOUND); /* names are never empty */
+    CHECK(found == 12345); /* untouched on failure */
+    last = clips - 1u;
+    CHECK_RESULT(mcd_find_clip(a, ci.name, &found), MCD_OK);
+    CHECK(found == last);
+}
+
+static void check_scratch_init(const mcd_asset* a) {
+    size_t n = mcd_scratch_size(a);
+    uint8_t* block = NULL;
+    CHECK(n > 0 && n % 16u == 0);
+    if (posix_memalign((void**)&block, 16, n + 16u) != 0) return;
+    CHECK_RESULT(mcd_scratch_init(NULL, block, n), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_scratch_init(a, NULL, n), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_scratch_init(a, block, n - 1u), MCD_ERROR_BUFFER_TOO_SMALL);
+    CHECK_RESULT(mcd_scratch_init(a, block, 0), MCD_ERROR_BUFFER_TOO_SMALL);
+    CHECK_RESULT(mcd_scratch_init(a, block + 8, n), MCD_ERROR_INVALID_ARGUMENT); /* 8-aligned only */
+    CHECK_RESULT(mcd_scratch_init(a, block + 1, n), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_scratch_init(a, block + 16, n), MCD_OK);
+    CHECK_RESULT(mcd_scratch_init(a, block, n + 16u), MCD_OK); /* larger is fine */
+    free(block);
+}
+
+static void check_sample(const mcd_golden* g, size_t count, size_t which) {
+    const mcd_asset* a = &g[which].asset;
+    mcd_clip_info ci;
+    mcd_transform pose[1024];
+    uint32_t clips = mcd_clip_count(a);
+    void* scratch = mcd_test_scratch(a);
+    uint8_t* zeros;
+    if (!scratch) return;
+    CHECK_RESULT(mcd_get_clip_info(a, 0, &ci), MCD_OK);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, ci.node_count, scratch), MCD_OK);
+    CHECK_RESULT(mcd_sample(NULL, 0, 0.0f, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, NULL, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, ci.node_count, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0x8u, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0x80000000u, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, (float)NAN, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, (float)NAN, MCD_SAMPLE_LOOP, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, (float)INFINITY, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, -(float)INFINITY, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, (float)INFINITY, MCD_SAMPLE_LOOP, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, clips, 0.0f, 0, pose, 1024, scratch), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_sample(a, UINT32_MAX, 0.0f, 0, pose, 1024, scratch), MCD_ERROR_OUT_OF_RANGE);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, ci.node_count - 1u, scratch), MCD_ERROR_BUFFER_TOO_SMALL);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, 0, scratch), MCD_ERROR_BUFFER_TOO_SMALL);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, ci.node_count, scratch), MCD_OK); /* still usable */
+    /* A scratch that was never initialised, then one initialised for another asset. */
+    zeros = (uint8_t*)calloc(1, mcd_scratch_size(a));
+    if (zeros) CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, 1024, zeros), MCD_ERROR_SCRATCH_MISMATCH);
+    free(zeros);
+    if (count > 1) {
+        const mcd_asset* other = &g[(which + 1) % count].asset;
+        size_t n = mcd_scratch_size(a) > mcd_scratch_size(other) ? mcd_scratch_size(a) : mcd_scratch_size(other);
+        void* s2 = NULL;
+        if (posix_memalign(&s2, 16, n) == 0) {
+            CHECK_RESULT(mcd_scratch_init(other, s2, n), MCD_OK);
+            CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, 1024, s2), MCD_ERROR_SCRATCH_MISMATCH);
+            CHECK_RESULT(mcd_sample(other, 0, 0.0f, 0, pose, 1024, s2), MCD_OK);
+            free(s2);
+        }
+    } else {
+        FAIL("the SCRATCH_MISMATCH check needs two golden assets");
+    }
+    {
+        /* The same bytes at another address are another asset: the scratch caches pointers. */
+        uint8_t* copy = (uint8_t*)malloc(g[which].file.size);
+        mcd_asset moved;
+        if (copy) {
+            memcpy(copy, g[which].file.data, g[which].file.size);
+            CHECK_RESULT(mcd_open(copy, g[which].file.size, 0, g[which].resident, g[which].resident ? (size_t)-1 : 0, &moved), MCD_OK);
+            CHECK_RESULT(mcd_sample(&moved, 0, 0.0f, 0, pose, 1024, scratch), MCD_ERROR_SCRATCH_MISMATCH);
+            free(copy);
+        }
+    }
+    mcd_test_free_scratch(scratch);
+}
+
+void test_argument_checks(void) {
+    mcd_golden* g;
+    size_t n = mcd_test_load_golden(&g), i;
+    check_result_strings();
+    for (i = 0; i < n; ++i) {
+        check_validate_open(&g[i].file);
+        check_queries(&g[i].asset);
+        check_scratch_init(&g[i].asset);
+        check_sample(g, n, i);
+    }
+    mcd_test_free_golden(g, n);
+}

@@ -1,0 +1,30 @@
+// Compiled only inside the Unity editor (needs UnityEditor).
+using System.IO;
+using Mocodec.Unity;
+using UnityEditor.AssetImporters;
+using UnityEngine;
+
+namespace Mocodec.Editor
+{
+    /// <summary>Imports .mcd files as <see cref="MocodecClip"/> assets. The runtime validates the
+    /// bytes at import so a corrupt file is reported in the console, not at play time.</summary>
+    [ScriptedImporter(1, "mcd")]
+    public sealed class MocodecImporter : ScriptedImporter
+    {
+        public override void OnImportAsset(AssetImportContext ctx)
+        {
+            byte[] bytes = File.ReadAllBytes(ctx.assetPath);
+            string error = "";
+            MocodecResult result = MocodecRuntime.Validate(bytes);
+            if (result != MocodecResult.Ok)
+            {
+                error = MocodecRuntime.Describe(result) + " (" + result + ")";
+                ctx.LogImportError(ctx.assetPath + ": not a valid mocodec asset: " + error);
+            }
+            MocodecClip clip = ScriptableObject.CreateInstance<MocodecClip>();
+            clip.SetImported(bytes, error);
+            ctx.AddObjectToAsset("clip", clip);
+            ctx.SetMainObject(clip);
+        }
+    }
+}
