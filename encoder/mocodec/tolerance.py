@@ -82,34 +82,6 @@ class TrackReach:
     is_rotation: np.ndarray
 
 
-def track_reach(
-    skeleton: Skeleton,
-    positions: np.ndarray,
-    track_nodes: list[int],
-    track_is_rotation: list[bool],
-    shell_units: float,
-) -> TrackReach:
-    """Reach of each track. A rotation at node ``a`` moves ``a``'s strict descendants by
-    its angle error times their distance to ``a`` (max over frames); every rotation is also
-    held to a virtual vertex at ``shell_units`` (ACL's shell), so leaf joints keep a sane
-    orientation. A translation at ``a`` moves ``a`` and all its descendants one to one."""
-    anc = ancestors_matrix(skeleton)
-    t = len(track_nodes)
-    n = skeleton.node_count
-    affects = np.zeros((t, n), dtype=bool)
-    lever = np.zeros((t, n))
-    for i, (a, rot) in enumerate(zip(track_nodes, track_is_rotation)):
-        below = anc[a].copy()
-        if rot:
-            d = np.linalg.norm(positions[:, below] - positions[:, a:a + 1], axis=-1).max(axis=0)
-            lever[i, below] = np.maximum(d, shell_units)
-            affects[i, below] = True
-        else:
-            affects[i, below] = True
-            lever[i, below] = 1.0
-    return TrackReach(affects, lever, np.asarray(track_is_rotation, dtype=bool))
-
-
 def initial_budgets(reach: TrackReach, tolerance_units: np.ndarray, scale: float) -> np.ndarray:
     """Budget per track (T,): angle in radians for rotations, length for translations.
 

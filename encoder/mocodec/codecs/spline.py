@@ -24,7 +24,7 @@ from ..curves import catmull_rom, fit_keys
 from ..kinematics import forward_kinematics
 from ..motion import Motion
 from ..quantize import Quantizer
-from ..tolerance import Tolerance, TrackReach, initial_budgets, tighten, track_reach
+from ..tolerance import Tolerance, TrackReach, ancestors_matrix, initial_budgets, tighten
 
 KIND_MRP, KIND_TWIST, KIND_TRANSLATION = 1, 2, 3
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3}
@@ -79,7 +79,6 @@ class _Track:
     quant_scale: float = 1.0
     keys: np.ndarray | None = None  # None: folded to a constant
     key_values: np.ndarray | None = None  # (K, d) before quantization
-    reach_index: int = -1
     fit_error: np.ndarray | None = None   # (F,) error of the current fit per frame
     ref_codes: np.ndarray | None = None   # int16 MRPs of ``ref`` as stored
     axis_codes: np.ndarray | None = None  # int16 axis as stored
@@ -143,10 +142,6 @@ def _twist_axis(motion: Motion, node: int, rel: np.ndarray) -> np.ndarray:
     return vt[0]
 
 
-def _rotation_track(motion: Motion, node: int) -> _Track:
-    return _rotation_track_from(motion.rotations[:, node], motion, node)
-
-
 def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> _Track:
     """A rotation track for local rotations ``q`` (F, 4) of ``node``."""
     q = R.quat_make_continuous(q)
@@ -184,23 +179,6 @@ def _track_error(track: _Track) -> Callable[[np.ndarray], np.ndarray]:
     if track.kind == KIND_TRANSLATION:
         return lambda recon: np.linalg.norm(recon - track.target, axis=1)
     return lambda recon: R.quat_angle(track.target, _track_rotations(track, recon))
-
-
-def build_tracks(motion: Motion) -> list[_Track]:
-    """Every node's animated rotation and position channels as tracks (constants are folded
-    later, against the budgets)."""
-    sk = motion.skeleton
-    tracks = []
-    for i in range(sk.node_count):
-        if sk.rotation_order(i):
-            q = motion.rotations[:, i]
-            if not np.all(np.abs(q - q[0]) == 0) or not np.array_equal(q[0], [0, 0, 0, 1]):
-                tracks.append(_rotation_track(motion, i))
-        if sk.position_axes(i):
-            t = motion.translations[:, i]
-            if not np.all(t == _f32_exact(sk.offsets[i])):
-                tracks.append(_Track(i, KIND_TRANSLATION, t.copy(), t, np.zeros(4), np.zeros(3)))
-    return tracks
 
 
 # ------------------------------------------------------------------------ fitting
@@ -265,7 +243,6 @@ def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
     frames = motion.frame_count
     starts = _block_starts(frames, shift)
     nb = len(starts)
-    block_len = 1 << shift
     animated = [t for t in tracks if t.keys is not None]
     index = {id(t): i for i, t in enumerate(animated)}
 
@@ -502,8 +479,6 @@ class _ClipFitter:
         """Which points each track moves, and by how much per unit of its error. A rotation
         moves its aim points and their subtrees by the bone length (compensation below keeps
         it from growing further), and a shell vertex of its own."""
-        from ..tolerance import TrackReach, ancestors_matrix
-
         sk = self.motion.skeleton
         anc = ancestors_matrix(sk)
         t = len(self.track_nodes)
@@ -607,13 +582,10 @@ class _ClipFitter:
                 t = _Track(i, KIND_TRANSLATION, tr.copy(), tr, np.zeros(4), np.zeros(3))
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
-            t.reach_index = len(order)
             tracks[(i, rot)] = t
             order.append((i, rot))
-        reach_rows = [self.track_nodes.index(i) if not rot else
-                      [k for k, (n_, r_) in enumerate(zip(self.track_nodes, self.track_is_rot)) if n_ == i and r_][0]
-                      for i, rot in order]
-        from ..tolerance import TrackReach
+        row_of = {key: k for k, key in enumerate(zip(self.track_nodes, self.track_is_rot))}
+        reach_rows = [row_of[key] for key in order]
         reach = TrackReach(self.reach.affects[reach_rows], self.reach.lever[reach_rows],
                            self.reach.is_rotation[reach_rows])
         self._decoded = None
