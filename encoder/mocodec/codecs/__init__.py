@@ -7,6 +7,7 @@ engine will see.
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -39,51 +40,37 @@ def get(name: str) -> Callable[..., CodecOutput]:
         raise ValueError(f"unknown codec {name!r}; available: {', '.join(available())}") from None
 
 
-def _encode_spline(
-    motions: list[Motion],
-    cm_per_unit: list[float],
-    tolerance: Tolerance,
-    check: CheckFn,
-    options: dict[str, Any],
-    progress: ProgressFn | None = None,
-) -> CodecOutput:
-    from .spline import SplineSettings, encode_clip
+def _per_clip(module: str, settings_class: str, stats: Callable[[Any], dict[str, Any]]):
+    """A codec entry point for codecs that encode each clip on its own: build the codec's
+    settings object from the options, encode clip by clip, collect payloads and stats."""
 
-    settings = SplineSettings(tolerance=tolerance, **options)
-    out = CodecOutput(payloads=[])
-    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload))
-        out.payloads.append(r.payload)
-        out.stats.append({"keys": r.keys, "tracks": r.tracks, "repairs": r.repairs,
-                          "budget_scale": r.scale, "encode_seconds": r.seconds})
-        if progress:
-            progress(m.name)
-    return out
+    def encode(
+        motions: list[Motion],
+        cm_per_unit: list[float],
+        tolerance: Tolerance,
+        check: CheckFn,
+        options: dict[str, Any],
+        progress: ProgressFn | None = None,
+    ) -> CodecOutput:
+        codec = importlib.import_module(f"{__name__}.{module}")
+        settings = getattr(codec, settings_class)(tolerance=tolerance, **options)
+        out = CodecOutput(payloads=[])
+        for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
+            r = codec.encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload))
+            out.payloads.append(r.payload)
+            out.stats.append(stats(r))
+            if progress:
+                progress(m.name)
+        return out
 
-
-def _encode_neural(
-    motions: list[Motion],
-    cm_per_unit: list[float],
-    tolerance: Tolerance,
-    check: CheckFn,
-    options: dict[str, Any],
-    progress: ProgressFn | None = None,
-) -> CodecOutput:
-    from .neural import NeuralSettings, encode_clip
-
-    settings = NeuralSettings(tolerance=tolerance, **options)
-    out = CodecOutput(payloads=[])
-    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload))
-        out.payloads.append(r.payload)
-        out.stats.append({"frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
-                          "stages": r.stages, "encode_seconds": r.seconds})
-        if progress:
-            progress(m.name)
-    return out
+    return encode
 
 
 _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
-    "spline": _encode_spline,
-    "neural": _encode_neural,
+    "spline": _per_clip("spline", "SplineSettings", lambda r: {
+        "keys": r.keys, "tracks": r.tracks, "repairs": r.repairs, "budget_scale": r.scale,
+        "encode_seconds": r.seconds}),
+    "neural": _per_clip("neural", "NeuralSettings", lambda r: {
+        "frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
+        "stages": r.stages, "encode_seconds": r.seconds}),
 }

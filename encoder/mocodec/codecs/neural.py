@@ -1,0 +1,566 @@
+"""Codec ``neural``: a clip as a small network from time to pose (seed 001), stored as
+docs/FORMAT.md's ``NEUR`` payload.
+
+Pose parameters (seed 001 §3): each translated node's local translation, the root rotation as
+a sign-continuous quaternion, every other animated joint as an axis-angle vector (relative to
+the clip's mean rotation of that joint, so that it stays far from the angle-pi wrap). Each
+parameter has a weight in length units (1 for translations, the farthest descendant distance
+for rotations), which makes the L2 loss a position-like error.
+
+The network is eq. 2: Fourier features x(t) = {t, sin w_k t, cos w_k t} (eq. 1), two hidden ELU
+layers of h = 2(2K+1) units, a linear output layer. Frequencies are DCT bins (w_k = pi k for
+t in [0, 1]) chosen by Algorithm 1: after each fit the residual's weighted first principal
+component is DCT'd and its peak bin joins the set, the network grows and is warm-started.
+Training is numpy with analytic gradients and scipy's L-BFGS. The loop stops when the
+quantized network meets the tolerance on every frame through the C runtime.
+"""
+from __future__ import annotations
+
+import contextlib
+import struct
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+from scipy.fft import dct
+from scipy.optimize import minimize
+
+from .. import rotations as R
+from ..bitpack import BitWriter
+from ..kinematics import forward_kinematics, lever_arms
+from ..motion import Motion
+from ..tolerance import Tolerance
+
+try:
+    from threadpoolctl import threadpool_limits
+except ImportError:  # pragma: no cover - optional: only makes training faster
+    threadpool_limits = None
+
+ROT_IDENTITY, ROT_CONSTANT, ROT_QUATERNION, ROT_AXIS_ANGLE = 0, 1, 2, 3
+TRANS_REST, TRANS_OUTPUT = 0, 2
+HEADER_SIZE = 44
+NODE_ENTRY = 8
+MAX_K = 32            # format limit on frequencies (docs/FORMAT.md)
+MAX_WEIGHT = 1.0e4    # format bound on |dequantized weight|
+MAX_ABS_VALUE = 1.0e7
+TENSORS = ("W0", "b0", "W1", "b1", "W2", "b2")
+
+
+class ToleranceNotMet(RuntimeError):
+    """The network could not reach the tolerance within the frequency / iteration caps."""
+
+
+@dataclass
+class NeuralSettings:
+    """Settings of the ``neural`` codec.
+
+    Parameters
+    ----------
+    tolerance : Tolerance
+        Max world-space position error per node, every frame (cm).
+    max_frequencies : int, default 16
+        Cap on K; the tolerance not met with K frequencies raises :class:`ToleranceNotMet`.
+    iterations : int, default 500
+        L-BFGS iterations per stage of Algorithm 1.
+    seed : int, default 1
+        Seed of the weight initialisation: the same seed gives the same asset.
+    restart : bool, default True
+        Each stage also trains a freshly initialised network beside the warm-started one and
+        keeps the lower loss (``False``: Algorithm 1's warm start only).
+    frequencies : str, default "adaptive"
+        ``"adaptive"`` (Algorithm 1) or ``"naive"`` (the seed's baseline, Omega = {1..K}).
+    min_bits, max_bits : int
+        Weight quantization bits tried, the fewest that meets the tolerance wins.
+    """
+
+    tolerance: Tolerance
+    max_frequencies: int = 16
+    iterations: int = 500
+    seed: int = 1
+    restart: bool = True
+    frequencies: str = "adaptive"
+    min_bits: int = 6
+    max_bits: int = 16
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.max_frequencies <= MAX_K:
+            raise ValueError(f"max_frequencies must be 0 ... {MAX_K} (the NEUR format's limit)")
+        if not 2 <= self.min_bits <= self.max_bits <= 16:
+            raise ValueError("weight bits must satisfy 2 <= min_bits <= max_bits <= 16")
+        if self.frequencies not in ("adaptive", "naive"):
+            raise ValueError(f"frequencies must be 'adaptive' or 'naive', got {self.frequencies!r}")
+        if self.iterations < 1:
+            raise ValueError("iterations must be at least 1")
+
+
+# ------------------------------------------------------------------------ pose parameters
+@dataclass
+class PoseLayout:
+    """How a pose maps to the network's outputs (one row of the node table per node)."""
+
+    entries: np.ndarray      # (N, 4) int: rotation mode, translation mode, rot out, trans out
+    ref_index: np.ndarray    # (N,) int: reference quaternion of the node (modes 1, 3)
+    refs: np.ndarray         # (R, 4) float32-exact unit quaternions
+    weights: np.ndarray      # (M,) length units per parameter unit
+    targets: np.ndarray      # (F, M) parameters on every frame
+
+    @property
+    def outputs(self) -> int:
+        return self.targets.shape[1]
+
+
+def _f32(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a, dtype=np.float32).astype(np.float64)
+
+
+def _unit_f32(q: np.ndarray) -> np.ndarray:
+    """A float32-exact quaternion whose norm is within 1e-6 of one (the format asks 1e-5)."""
+    q = np.asarray(q, dtype=np.float64)
+    return _f32(q / np.linalg.norm(q))
+
+
+def axis_angle_from_quat(q: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) of unit quaternions with w >= 0 (angle <= pi)."""
+    v = q[..., :3]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., 3:4])
+    # Near zero angle the vector part is angle/2 times the axis: the ratio tends to 2.
+    ratio = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 2.0)
+    return v * ratio
+
+
+def quat_from_axis_angle_vec(v: np.ndarray) -> np.ndarray:
+    """Unit quaternions of rotation vectors (..., 3): the runtime's formula."""
+    a = np.linalg.norm(v, axis=-1, keepdims=True)
+    half = 0.5 * a
+    k = np.where(a > 1e-12, np.sin(half) / np.maximum(a, 1e-300), 0.5)
+    return np.concatenate((v * k, np.cos(half)), axis=-1)
+
+
+def pose_layout(motion: Motion) -> PoseLayout:
+    """Seed 001 §3 parameters of ``motion`` with their weights."""
+    sk = motion.skeleton
+    frames = motion.frame_count
+    pos = forward_kinematics(sk, motion.rotations, motion.translations)[1]
+    lever = lever_arms(sk, pos)
+    floor = max(1e-3 * float(lever.max()), 1e-6)  # a leaf joint still needs a nonzero weight
+    entries = np.zeros((sk.node_count, 4), dtype=np.int64)
+    entries[:, 0], entries[:, 1] = ROT_IDENTITY, TRANS_REST  # until a channel says otherwise
+    ref_index = np.zeros(sk.node_count, dtype=np.int64)
+    refs: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    weights: list[float] = []
+    m = 0
+    for i in range(sk.node_count):
+        if sk.rotation_order(i):
+            q = R.quat_make_continuous(motion.rotations[:, i])
+            w = max(float(lever[i]), floor)
+            if np.max(R.quat_angle(q[:1], q)) < 1e-9:
+                entries[i, 0] = ROT_CONSTANT
+                ref_index[i] = len(refs)
+                refs.append(_unit_f32(q[0]))
+            elif sk.parents[i] < 0:
+                # The root may turn round: a quaternion has no wrap (seed 001 §3). A change
+                # dq of a component turns it by about 2|dq|.
+                entries[i, 0], entries[i, 2] = ROT_QUATERNION, m
+                cols.append(q)
+                weights += [2.0 * w] * 4
+                m += 4
+            else:
+                ref = _unit_f32(R.quat_mean(q))
+                rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), q))
+                rel = np.where(rel[:, 3:4] < 0, -rel, rel)
+                entries[i, 0], entries[i, 2] = ROT_AXIS_ANGLE, m
+                ref_index[i] = len(refs)
+                refs.append(ref)
+                cols.append(axis_angle_from_quat(rel))
+                weights += [w] * 3
+                m += 3
+        if sk.position_axes(i):
+            entries[i, 1], entries[i, 3] = TRANS_OUTPUT, m
+            cols.append(motion.translations[:, i])
+            weights += [1.0] * 3
+            m += 3
+    targets = np.concatenate(cols, axis=1) if cols else np.zeros((frames, 0))
+    return PoseLayout(entries, ref_index, np.array(refs).reshape(-1, 4), np.array(weights), targets)
+
+
+def local_pose(layout: PoseLayout, motion: Motion, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations (F, N, 4) and translations (F, N, 3) of parameters ``y`` (F, M)."""
+    sk = motion.skeleton
+    f = y.shape[0]
+    rot = np.zeros((f, sk.node_count, 4))
+    rot[..., 3] = 1.0
+    trans = np.broadcast_to(_f32(sk.offsets), (f, sk.node_count, 3)).copy()
+    for i, (rm, tm, ro, to) in enumerate(layout.entries):
+        if rm == ROT_CONSTANT:
+            rot[:, i] = layout.refs[layout.ref_index[i]]
+        elif rm == ROT_QUATERNION:
+            q = y[:, ro:ro + 4]
+            n = np.linalg.norm(q, axis=1, keepdims=True)
+            rot[:, i] = np.where(n > 1e-15, q / np.maximum(n, 1e-300), [0.0, 0.0, 0.0, 1.0])
+        elif rm == ROT_AXIS_ANGLE:
+            rot[:, i] = R.quat_multiply(layout.refs[layout.ref_index[i]],
+                                        quat_from_axis_angle_vec(y[:, ro:ro + 3]))
+        if tm == TRANS_OUTPUT:
+            trans[:, i] = y[:, to:to + 3]
+    return rot, trans
+
+
+# ------------------------------------------------------------------------ the network
+def fourier_features(x: np.ndarray, frames: int, freqs: list[int]) -> np.ndarray:
+    """Eq. 1 at frame positions ``x``: (len(x), 2K + 1), t = x / (F - 1), w_k = pi k.
+    Computed in float64 and rounded to float32, as the runtime does."""
+    t = np.asarray(x, dtype=np.float64) / max(frames - 1, 1)
+    cols = [t]
+    for k in freqs:
+        cols += [np.sin(np.pi * k * t), np.cos(np.pi * k * t)]
+    return _f32(np.stack(cols, axis=1))
+
+
+def _elu(z: np.ndarray) -> np.ndarray:
+    return np.where(z > 0, z, np.expm1(np.minimum(z, 0.0)))
+
+
+def forward(p: dict[str, np.ndarray], x: np.ndarray) -> np.ndarray:
+    """Eq. 2: W2 ELU(W1 ELU(W0 x + b0) + b1) + b2 for rows x."""
+    a0 = _elu(x @ p["W0"].T + p["b0"])
+    a1 = _elu(a0 @ p["W1"].T + p["b1"])
+    return a1 @ p["W2"].T + p["b2"]
+
+
+def _shapes(d: int, h: int, m: int) -> list[tuple[int, ...]]:
+    return [(h, d), (h,), (h, h), (h,), (m, h), (m,)]
+
+
+def _pack(p: dict[str, np.ndarray]) -> np.ndarray:
+    return np.concatenate([p[k].ravel() for k in TENSORS])
+
+
+def _unpack(v: np.ndarray, d: int, h: int, m: int) -> dict[str, np.ndarray]:
+    out, o = {}, 0
+    for k, s in zip(TENSORS, _shapes(d, h, m)):
+        n = int(np.prod(s))
+        out[k] = v[o:o + n].reshape(s)
+        o += n
+    return out
+
+
+def _loss_grad(v: np.ndarray, x: np.ndarray, z: np.ndarray, d: int, h: int) -> tuple[float, np.ndarray]:
+    """Eq. 3 on normalised targets (the weights are folded into the normalisation) and its
+    analytic gradient by back-propagation."""
+    m = z.shape[1]
+    p = _unpack(v, d, h, m)
+    z0 = x @ p["W0"].T + p["b0"]
+    a0 = _elu(z0)
+    z1 = a0 @ p["W1"].T + p["b1"]
+    a1 = _elu(z1)
+    r = a1 @ p["W2"].T + p["b2"] - z
+    n = x.shape[0]
+    loss = 0.5 * float(np.sum(r * r)) / n
+    g = r / n
+    d1 = (g @ p["W2"]) * np.where(z1 > 0, 1.0, a1 + 1.0)   # ELU'(z) = ELU(z) + 1 below 0
+    d0 = (d1 @ p["W1"]) * np.where(z0 > 0, 1.0, a0 + 1.0)
+    grads = {"W2": g.T @ a1, "b2": g.sum(0), "W1": d1.T @ a0, "b1": d1.sum(0),
+             "W0": d0.T @ x, "b0": d0.sum(0)}
+    return loss, _pack(grads)
+
+
+def init_network(d: int, m: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    h = 2 * d
+    return {"W0": rng.normal(0, np.sqrt(1.0 / d), (h, d)), "b0": np.zeros(h),
+            "W1": rng.normal(0, np.sqrt(1.0 / h), (h, h)), "b1": np.zeros(h),
+            "W2": rng.normal(0, np.sqrt(1.0 / h), (m, h)) * 0.1, "b2": np.zeros(m)}
+
+
+def grow_network(p: dict[str, np.ndarray], rng: np.random.Generator, small: float = 1e-2) -> dict[str, np.ndarray]:
+    """Two more inputs (a new sin/cos pair) and four more hidden units per layer (h = 2d),
+    old weights copied (Algorithm 1, line 11). The grown network computes exactly the old
+    function at first: the new units' output weights are zero. The new units get weights at
+    the initialisation scale, so they are live features from the start (with tiny weights
+    they stayed near zero and the fit stalled: 3.9 cm instead of 1.1 cm on the first 40
+    frames of sample 07_01 with 7 frequencies), and
+    the old units see the new inputs through small weights."""
+    h, d = p["W0"].shape
+    m = p["W2"].shape[0]
+    h2, d2 = h + 4, d + 2
+    q = {"W0": rng.normal(0, np.sqrt(1.0 / d2), (h2, d2)), "b0": np.zeros(h2),
+         "W1": rng.normal(0, np.sqrt(1.0 / h2), (h2, h2)), "b1": np.zeros(h2),
+         "W2": np.zeros((m, h2)), "b2": p["b2"].copy()}
+    q["W0"][:h, d:] = rng.normal(0, small, (h, 2))
+    q["W1"][:h, h:] = rng.normal(0, small, (h, 4))
+    q["W0"][:h, :d] = p["W0"]
+    q["b0"][:h] = p["b0"]
+    q["W1"][:h, :h] = p["W1"]
+    q["b1"][:h] = p["b1"]
+    q["W2"][:, :h] = p["W2"]
+    return q
+
+
+def _one_thread() -> contextlib.AbstractContextManager:
+    """BLAS on one thread: these matrices are tiny, and on a shared machine thread hand-offs
+    made each L-BFGS iteration about ten times slower."""
+    return threadpool_limits(1) if threadpool_limits else contextlib.nullcontext()
+
+
+def train(p: dict[str, np.ndarray], x: np.ndarray, z: np.ndarray, iterations: int) -> tuple[dict[str, np.ndarray], float]:
+    """L-BFGS on eq. 3 from ``p``; returns the weights and the final loss."""
+    h, d = p["W0"].shape
+    with _one_thread():
+            res = minimize(_loss_grad, _pack(p), args=(x, z, d, h), jac=True, method="L-BFGS-B",
+                       options={"maxiter": iterations, "maxcor": 20, "gtol": 1e-12, "ftol": 1e-15})
+    return _unpack(res.x, d, h, z.shape[1]), float(res.fun)
+
+
+def fit_stage(p: dict[str, np.ndarray] | None, x: np.ndarray, z: np.ndarray, iterations: int,
+              restart: bool, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """One stage of Algorithm 1: train the warm-started (grown) network ``p``; with
+    ``restart`` also a freshly initialised one of the same size, keeping the lower loss. The
+    warm start alone often settles in a worse minimum than a fresh start (first 40 / 80 frames
+    of samples 07_01 / 09_11, 8 frequencies: 0.7 / 1.6 cm against 0.1 / 1.0 cm)."""
+    best, best_loss = None, np.inf
+    starts = [] if p is None else [p]
+    if restart or p is None:
+        starts.append(init_network(x.shape[1], z.shape[1], rng))
+    for start in starts:
+        q, loss = train(start, x, z, iterations)
+        if loss < best_loss:
+            best, best_loss = q, loss
+    return best
+
+
+def next_frequency(residual: np.ndarray, used: list[int]) -> int:
+    """Algorithm 1, lines 7-10: the residual's first principal component (the residual is
+    already in weighted units), its DCT, and the peak bin not yet used."""
+    r = residual - residual.mean(axis=0)
+    _, _, vt = np.linalg.svd(r, full_matrices=False)
+    spectrum = np.abs(dct(r @ vt[0], type=2, norm="ortho"))
+    spectrum[0] = -1.0            # the constant is the biases' job
+    spectrum[list(used)] = -1.0
+    spectrum[1 << 16:] = -1.0     # frequencies are stored as u16
+    return int(np.argmax(spectrum))
+
+
+# ------------------------------------------------------------------------ quantization, payload
+@dataclass
+class QuantizedNetwork:
+    bits: int
+    steps: np.ndarray                 # (6,) float32-exact
+    codes: dict[str, np.ndarray]      # signed integers per tensor
+
+    def weights(self) -> dict[str, np.ndarray]:
+        """Dequantized weights exactly as the runtime forms them (binary32 product)."""
+        return {k: (self.codes[k].astype(np.float32) * np.float32(s)).astype(np.float64)
+                for k, s in zip(TENSORS, self.steps)}
+
+
+def quantize(p: dict[str, np.ndarray], bits: int) -> QuantizedNetwork:
+    half = (1 << (bits - 1)) - 1
+    steps, codes = [], {}
+    for k in TENSORS:
+        peak = float(np.max(np.abs(p[k]))) if p[k].size else 0.0
+        if peak * (1 << (bits - 1)) / max(half, 1) > MAX_WEIGHT:
+            raise ToleranceNotMet(f"weight magnitude {peak:.3g} exceeds the format's bound")
+        step = float(np.float32(peak / half)) if peak > 0 else 1.0
+        steps.append(step)
+        codes[k] = np.clip(np.rint(p[k] / step), -half, half).astype(np.int64)
+    return QuantizedNetwork(bits, np.array(steps), codes)
+
+
+@dataclass
+class NeuralModel:
+    """Everything a payload holds."""
+
+    frames: int
+    nodes: int
+    freqs: list[int]
+    layout: PoseLayout
+    scale: np.ndarray    # (M,) float32-exact
+    offset: np.ndarray   # (M,) float32-exact
+    net: QuantizedNetwork
+
+    def parameters(self, x: np.ndarray) -> np.ndarray:
+        """Pose parameters (len(x), M) at frame positions x (the reference evaluation)."""
+        y = forward(self.net.weights(), fourier_features(x, self.frames, self.freqs))
+        return np.clip(self.offset + self.scale * y, -MAX_ABS_VALUE, MAX_ABS_VALUE)
+
+
+def write_payload(model: NeuralModel) -> bytes:
+    L, net = model.layout, model.net
+    k, m = len(model.freqs), L.outputs
+    h = net.codes["W0"].shape[0]
+    out = bytearray(struct.pack("<IIHHHHB3x", model.frames, model.nodes, k, h, m, len(L.refs), net.bits))
+    out += struct.pack("<6f", *net.steps)
+    for (rm, tm, ro, to), ri in zip(L.entries, L.ref_index):
+        out += struct.pack("<BBHHH", rm, tm, ro if rm in (ROT_QUATERNION, ROT_AXIS_ANGLE) else 0,
+                           to if tm == TRANS_OUTPUT else 0, ri if rm in (ROT_CONSTANT, ROT_AXIS_ANGLE) else 0)
+    out += struct.pack(f"<{k}H", *model.freqs)
+    if k % 2:
+        out += b"\0\0"
+    out += np.asarray(L.refs, dtype="<f4").tobytes()
+    out += np.asarray(model.scale, dtype="<f4").tobytes()
+    out += np.asarray(model.offset, dtype="<f4").tobytes()
+    bw = BitWriter()
+    bias = 1 << (net.bits - 1)
+    for name in TENSORS:
+        bw.write(net.codes[name].ravel() + bias, net.bits)
+    stream = bw.getvalue()
+    out += stream + bytes(-len(stream) % 4)
+    return bytes(out)
+
+
+def read_payload(payload: bytes) -> NeuralModel:
+    """Parse a payload the encoder wrote (trusted input: the reference decoder for tests)."""
+    f, n, k, h, m, r, bits = struct.unpack_from("<IIHHHHB", payload, 0)
+    steps = np.array(struct.unpack_from("<6f", payload, 20))
+    o = HEADER_SIZE
+    table = np.frombuffer(payload, "<u2", 4 * n, o).reshape(n, 4).astype(np.int64)
+    raw = np.frombuffer(payload, np.uint8, 8 * n, o).reshape(n, 8)
+    o += NODE_ENTRY * n
+    freqs = [int(v) for v in np.frombuffer(payload, "<u2", k, o)]
+    o += 2 * k + (2 if k % 2 else 0)
+    refs = np.frombuffer(payload, "<f4", 4 * r, o).reshape(r, 4).astype(np.float64)
+    o += 16 * r
+    scale = np.frombuffer(payload, "<f4", m, o).astype(np.float64)
+    offset = np.frombuffer(payload, "<f4", m, o + 4 * m).astype(np.float64)
+    o += 8 * m
+    d = 2 * k + 1
+    counts = [int(np.prod(s)) for s in _shapes(d, h, m)]
+    bitsarr = np.unpackbits(np.frombuffer(payload, np.uint8, len(payload) - o, o), bitorder="little")
+    total = sum(counts)
+    vals = bitsarr[: total * bits].reshape(total, bits).astype(np.int64) @ (1 << np.arange(bits))
+    vals -= 1 << (bits - 1)
+    codes, c = {}, 0
+    for name, s, cnt in zip(TENSORS, _shapes(d, h, m), counts):
+        codes[name] = vals[c:c + cnt].reshape(s)
+        c += cnt
+    entries = np.stack((raw[:, 0], raw[:, 1], table[:, 1], table[:, 2]), axis=1).astype(np.int64)
+    layout = PoseLayout(entries, table[:, 3].copy(), refs, np.ones(m), np.zeros((f, m)))
+    return NeuralModel(f, n, freqs, layout, scale, offset, QuantizedNetwork(bits, steps, codes))
+
+
+def reference_pose(payload: bytes, motion: Motion, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Local rotations and translations a payload decodes to at frame positions ``x``,
+    computed in float64 from the stored (float32) numbers: the Python model of the runtime."""
+    model = read_payload(payload)
+    return local_pose(model.layout, motion, model.parameters(x))
+
+
+# ------------------------------------------------------------------------ Algorithm 1
+@dataclass
+class NeuralClipResult:
+    payload: bytes
+    errors_units: np.ndarray
+    freqs: list[int]
+    bits: int
+    parameters: int
+    stages: int
+    seconds: float
+    history: list[dict[str, float]] = field(default_factory=list)
+
+
+def _normalisation(layout: PoseLayout) -> tuple[np.ndarray, np.ndarray]:
+    """out = offset + scale * net: offset the mid-range, scale = L / w, so the plain MSE on
+    the network's outputs is eq. 3's weighted loss divided by L^2 (L: the largest weighted
+    half-range, which keeps the network's targets within [-1, 1])."""
+    y, w = layout.targets, layout.weights
+    lo, hi = y.min(axis=0), y.max(axis=0)
+    offset = _f32(0.5 * (lo + hi))
+    L = max(float(np.max(0.5 * (hi - lo) * w)) if y.size else 1.0, 1e-9)
+    return _f32(L / w), offset
+
+
+def algorithm1(z: np.ndarray, frames: int, mode: str, k_max: int, iterations: int, restart: bool,
+               rng: np.random.Generator) -> Iterator[tuple[list[int], dict[str, np.ndarray]]]:
+    """Algorithm 1's stages on normalised targets ``z`` (F, M): yields (frequencies, weights)
+    after each fit, K = 0 ... k_max; the caller stops it when the error is good enough.
+    ``mode`` "naive" takes Omega = {1, ..., K} (DCT bins) instead of the residual's peaks."""
+    fx = np.arange(frames, dtype=np.float64)
+    freqs: list[int] = []
+    p: dict[str, np.ndarray] | None = None
+    while True:
+        x = fourier_features(fx, frames, freqs)
+        p = fit_stage(p, x, z, iterations, restart, rng)
+        yield list(freqs), p
+        if len(freqs) >= k_max:
+            return
+        freqs.append(len(freqs) + 1 if mode == "naive" else next_frequency(z - forward(p, x), freqs))
+        p = grow_network(p, rng)
+
+
+def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
+                check: Callable[[bytes], np.ndarray],
+                on_stage: Callable[[dict[str, float]], None] | None = None) -> NeuralClipResult:
+    """Algorithm 1 on one clip, stopping at the first stage whose quantized network meets the
+    tolerance through the runtime; ``check(payload)`` is the (F, N) world error there, in
+    file units."""
+    started = time.perf_counter()
+    layout = pose_layout(motion)
+    tol_units = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+    frames = motion.frame_count
+    scale, offset = _normalisation(layout)
+    z = (layout.targets - offset) / scale
+    world = forward_kinematics(motion.skeleton, motion.rotations, motion.translations)[1]
+    x_all = np.arange(frames, dtype=np.float64)
+
+    def world_error(y: np.ndarray) -> np.ndarray:
+        rot, trans = local_pose(layout, motion, y)
+        return np.linalg.norm(forward_kinematics(motion.skeleton, rot, trans)[1] - world, axis=-1)
+
+    history: list[dict[str, float]] = []
+    err = np.full(1, np.inf)
+    stages = algorithm1(z, frames, settings.frequencies, settings.max_frequencies, settings.iterations,
+                        settings.restart, np.random.default_rng(settings.seed))
+    # One BLAS thread for the whole search, not only the L-BFGS: results then do not depend
+    # on the machine's thread count.
+    with _one_thread():
+        for stage, (freqs, p) in enumerate(stages, start=1):
+            err = world_error(offset + scale * forward(p, fourier_features(x_all, frames, freqs)))
+            rec = {"K": len(freqs), "max_error_cm": float(np.max(err) * cm_per_unit),
+                   "seconds": time.perf_counter() - started}
+            history.append(rec)
+            if on_stage:
+                on_stage(rec)
+            # Leave a little of the tolerance to the weights' quantization.
+            if np.max(err / tol_units) <= 0.95:
+                found = _quantize_to_tolerance(motion, layout, freqs, scale, offset, p, settings,
+                                               tol_units, check, world_error)
+                if found is not None:
+                    payload, c_err, bits = found
+                    return NeuralClipResult(payload, c_err, freqs, bits, _pack(p).size, stage,
+                                            time.perf_counter() - started, history)
+    raise ToleranceNotMet(f"{motion.name}: {np.max(err) * cm_per_unit:.3f} cm with K = "
+                          f"{settings.max_frequencies} frequencies (the cap)")
+
+
+def _quantize_to_tolerance(motion: Motion, layout: PoseLayout, freqs: list[int], scale: np.ndarray,
+                           offset: np.ndarray, p: dict[str, np.ndarray], settings: NeuralSettings,
+                           tol_units: np.ndarray, check: Callable[[bytes], np.ndarray],
+                           world_error: Callable[[np.ndarray], np.ndarray]
+                           ) -> tuple[bytes, np.ndarray, int] | None:
+    """The fewest weight bits whose network meets the tolerance through the runtime."""
+    for bits in range(settings.min_bits, settings.max_bits + 1):
+        net = quantize(p, bits)
+        model = NeuralModel(motion.frame_count, motion.skeleton.node_count, list(freqs), layout,
+                            scale, offset, net)
+        y = model.parameters(np.arange(motion.frame_count, dtype=np.float64))
+        if np.any(world_error(y) > tol_units[None, :] * 0.999):
+            continue  # the Python model already misses: no need to ask the runtime
+        payload = write_payload(model)
+        c_err = check(payload)
+        if np.all(c_err <= tol_units[None, :]):
+            return payload, c_err, bits
+    return None
+
+
+def fit_stages(motion: Motion, mode: str, k_max: int, iterations: int, seed: int = 1,
+               restart: bool = True) -> Iterator[NeuralModel]:
+    """The model (16-bit weights) after every stage of :func:`algorithm1`, K = 0 ... k_max,
+    without the tolerance test: for the rate/error curves of bench/bench_neural.py."""
+    layout = pose_layout(motion)
+    scale, offset = _normalisation(layout)
+    z = (layout.targets - offset) / scale
+    frames = motion.frame_count
+    for freqs, p in algorithm1(z, frames, mode, k_max, iterations, restart, np.random.default_rng(seed)):
+        yield NeuralModel(frames, motion.skeleton.node_count, freqs, layout, scale, offset, quantize(p, 16))
