@@ -538,12 +538,12 @@ def _preorder(sk: Skeleton) -> tuple[list[int], list[int]]:
         (children[p] if p >= 0 else roots).append(i)
     order: list[int] = []
     depth: list[int] = []
-    todo = [(r, 0) for r in reversed(roots)]
-    while todo:
-        i, d = todo.pop()
+    stack = [(r, 0) for r in reversed(roots)]
+    while stack:
+        i, d = stack.pop()
         order.append(i)
         depth.append(d)
-        todo.extend((c, d + 1) for c in reversed(children[i]))
+        stack.extend((c, d + 1) for c in reversed(children[i]))
     return order, depth
 
 
