@@ -161,3 +161,19 @@ def test_to_channels_restores_source_branches() -> None:
     again = Motion.from_channels(sk, plain, 1 / 30)
     assert np.max(rotation_angle(again.rotations, motion.rotations)) < 1e-9
     np.testing.assert_allclose(again.translations, motion.translations)
+
+
+def test_quat_from_matrix_matches_scipy_including_near_180_degrees():
+    from scipy.spatial.transform import Rotation
+
+    from mocodec.rotations import quat_from_matrix
+
+    rng = np.random.default_rng(7)
+    rots = Rotation.random(500, random_state=11)
+    flips = Rotation.from_rotvec(np.pi * (1 - 1e-9) * rng.normal(size=(50, 3)) /
+                                 np.linalg.norm(rng.normal(size=(50, 3)), axis=1, keepdims=True))
+    for r in (rots, flips):
+        q = quat_from_matrix(r.as_matrix())
+        expect = r.as_quat()
+        sign = np.sign(np.sum(q * expect, axis=1, keepdims=True))
+        assert np.allclose(q, sign * expect, atol=1e-9)

@@ -396,34 +396,7 @@ def _wahba(v: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
     m = np.ones((len(b), 3))
     m[:, 2] = d
     rot = uu @ (m[:, :, None] * vt)
-    return _matrix_to_quat(rot)
-
-
-def _matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions (x y z w) of rotation matrices (F, 3, 3), numerically robust."""
-    t = np.trace(m, axis1=1, axis2=2)
-    cand = np.stack((m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], t), axis=1)
-    k = np.argmax(cand, axis=1)
-    q = np.empty((len(m), 4))
-    for case in range(4):
-        sel = k == case
-        if not sel.any():
-            continue
-        a = m[sel]
-        if case == 3:
-            r = np.sqrt(1.0 + t[sel]) * 2.0
-            q[sel] = np.stack(((a[:, 2, 1] - a[:, 1, 2]) / r, (a[:, 0, 2] - a[:, 2, 0]) / r,
-                               (a[:, 1, 0] - a[:, 0, 1]) / r, 0.25 * r), axis=1)
-        else:
-            i, j, kk = case, (case + 1) % 3, (case + 2) % 3
-            r = np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, kk, kk]) * 2.0
-            out = np.empty((len(a), 4))
-            out[:, i] = 0.25 * r
-            out[:, j] = (a[:, j, i] + a[:, i, j]) / r
-            out[:, kk] = (a[:, kk, i] + a[:, i, kk]) / r
-            out[:, 3] = (a[:, kk, j] - a[:, j, kk]) / r
-            q[sel] = out
-    return R.quat_normalize(q)
+    return R.quat_from_matrix(rot)
 
 
 class _ClipFitter:

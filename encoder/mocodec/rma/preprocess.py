@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import rotations as R
-from ..codecs.spline import _matrix_to_quat  # robust matrix -> quaternion, shared with spline
+
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton
 
@@ -261,7 +261,7 @@ def marker_world_rotations(markers: np.ndarray, layout: MarkerLayout) -> np.ndar
     rest = _frames_from_vectors(layout.rest_axis, layout.rest_side)  # (J, 3, 3)
     # world_frame = R * rest_frame  =>  R = world_frame @ rest_frame^T
     mats = world @ np.swapaxes(rest, -1, -2)[None]
-    return R.quat_make_continuous(_matrix_to_quat(mats.reshape(-1, 3, 3)).reshape(f, -1, 4))
+    return R.quat_make_continuous(R.quat_from_matrix(mats.reshape(-1, 3, 3)).reshape(f, -1, 4))
 
 
 def from_markers(markers: np.ndarray, root: RootTrack, layout: MarkerLayout,
