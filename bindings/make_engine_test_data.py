@@ -36,11 +36,14 @@ def main(out: Path) -> int:
     walk = read_bvh(SAMPLES / "07_01.bvh").slice(0, 121)
     walk.name = "07_01_head"
     failed = []
+    # Each codec at a tolerance it is known to meet on these clips (neural reaches 3 cm, not 1:
+    # bench/results/neural.md), so every binding samples a real asset of every codec.
+    tolerance_cm = {"neural": 3.0}
     for codec in codecs.available():
         motions = [run, walk]
         try:
             units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
-            result = encode_motions(motions, units, codec, Tolerance(1.0))
+            result = encode_motions(motions, units, codec, Tolerance(tolerance_cm.get(codec, 1.0)))
         except Exception as exc:  # reported, never silent: another codec's bug is not ours
             print(f"make_engine_test_data: codec {codec} failed to encode: {exc}", file=sys.stderr)
             failed.append(codec)
