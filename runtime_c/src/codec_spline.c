@@ -397,6 +397,7 @@ static uint32_t key_offset(const layout* L, const walk* w, uint32_t u, uint32_t 
     if (n * L->shift < L->block_len - 1u)
         return read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
     mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
+    if (k == n) return highest_bit(mask) + 1u; /* the block's last key: no scan */
     while (--k) mask &= mask - 1u;
     return lowest_bit(mask) + 1u;
 }
@@ -442,17 +443,6 @@ static void next_key(const layout* L, views* s, uint32_t u, uint32_t* block, uin
     }
 }
 
-/* Offset of the last key of track u in a block (0 when it has no extras). */
-static uint32_t last_offset(const layout* L, const walk* w, uint32_t u) {
-    uint32_t n = w->n[u];
-    uint64_t mask;
-    if (n == 0) return 0;
-    if (n * L->shift < L->block_len - 1u)
-        return read_bits(L->stream, w->tpos[u] + (uint64_t)(n - 1u) * L->shift, L->shift);
-    mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
-    return highest_bit(mask) + 1u;
-}
-
 static void set_slot(const layout* L, track_state* ts, uint32_t slot, const walk* w, uint32_t u,
                      uint32_t block, uint32_t k, uint32_t frame) {
     ts->ref_block[slot] = block;
@@ -490,7 +480,7 @@ static void locate(const layout* L, views* s, uint32_t u, float x) {
         set_slot(L, ts, 0, wj, u, j, i - 1u, sj + offs[i - 1u]);
     } else if (j > 0) {
         const walk* wp = walk_of(L, s, j - 1u);
-        set_slot(L, ts, 0, wp, u, j - 1u, wp->n[u], block_start(L, j - 1u) + last_offset(L, wp, u));
+        set_slot(L, ts, 0, wp, u, j - 1u, wp->n[u], block_start(L, j - 1u) + key_offset(L, wp, u, wp->n[u]));
     } else {
         set_slot(L, ts, 0, wj, u, j, 0, sj);
     }
