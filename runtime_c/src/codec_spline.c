@@ -343,10 +343,6 @@ static const walk* walk_of(const layout* L, views* s, uint32_t j) {
     return &s->resolved[slot];
 }
 
-static walk get_walk(const layout* L, views* s, uint32_t j) {
-    return *walk_of(L, s, j);
-}
-
 /* Index of the lowest set bit of a non-zero mask. */
 static uint32_t lowest_bit(uint64_t m) {
 #if defined(__GNUC__) || defined(__clang__)
@@ -422,26 +418,6 @@ static void read_key(const layout* L, const walk* w, const track_state* ts, uint
     }
 }
 
-/* Load key slot `slot` of a track from (block, k). */
-static void load_slot(const layout* L, views* s, uint32_t u, uint32_t slot, uint32_t block, uint32_t k) {
-    track_state* ts = &s->tracks[u];
-    walk w = get_walk(L, s, block);
-    ts->ref_block[slot] = block;
-    ts->ref_k[slot] = k;
-    ts->t[slot] = (float)(block_start(L, block) + key_offset(L, &w, u, k));
-    read_key(L, &w, ts, u, k, ts->v[slot]);
-}
-
-/* The key after (block, k), or the same key at the end of the clip (end keys repeat). */
-static void next_key(const layout* L, views* s, uint32_t u, uint32_t* block, uint32_t* k) {
-    walk w = get_walk(L, s, *block);
-    if (*k < w.n[u]) {
-        ++*k;
-    } else if (*block + 1u < L->blocks) {
-        ++*block;
-        *k = 0;
-    }
-}
 
 static void set_slot(const layout* L, track_state* ts, uint32_t slot, const walk* w, uint32_t u,
                      uint32_t block, uint32_t k, uint32_t frame) {
@@ -505,16 +481,36 @@ static void locate(const layout* L, views* s, uint32_t u, float x) {
     ts->valid = 1;
 }
 
-/* Move the four-key window one key forward (sequential playback): one new key read. */
+/* Move the four-key window one key forward (sequential playback): one new key read, its
+ * frame found from the previous key's offset without rescanning the block. */
 static void advance(const layout* L, views* s, uint32_t u) {
     track_state* ts = &s->tracks[u];
-    uint32_t b = ts->ref_block[3], k = ts->ref_k[3];
-    memmove(ts->t, ts->t + 1, 3 * sizeof ts->t[0]);
-    memmove(ts->v, ts->v + 1, 3 * sizeof ts->v[0]);
-    memmove(ts->ref_block, ts->ref_block + 1, 3 * sizeof ts->ref_block[0]);
-    memmove(ts->ref_k, ts->ref_k + 1, 3 * sizeof ts->ref_k[0]);
-    next_key(L, s, u, &b, &k);
-    load_slot(L, s, u, 3, b, k);
+    uint32_t b = ts->ref_block[3], k = ts->ref_k[3], i, c, frame;
+    const walk* w = walk_of(L, s, b);
+    for (i = 0; i < 3; ++i) {
+        ts->t[i] = ts->t[i + 1];
+        ts->ref_block[i] = ts->ref_block[i + 1];
+        ts->ref_k[i] = ts->ref_k[i + 1];
+        for (c = 0; c < 4; ++c) ts->v[i][c] = ts->v[i + 1][c];
+    }
+    if (k < w->n[u]) {
+        uint32_t prev = (uint32_t)ts->t[2] - block_start(L, b); /* offset of key k */
+        if (w->n[u] * L->shift < L->block_len - 1u) {
+            frame = block_start(L, b) + read_bits(L->stream, w->tpos[u] + (uint64_t)k * L->shift, L->shift);
+        } else {
+            uint64_t mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u) >> prev;
+            frame = block_start(L, b) + prev + 1u + lowest_bit(mask);
+        }
+        ++k;
+    } else if (b + 1u < L->blocks) {
+        ++b;
+        k = 0;
+        w = walk_of(L, s, b);
+        frame = block_start(L, b);
+    } else {
+        frame = (uint32_t)ts->t[2]; /* the clip's last key repeats */
+    }
+    set_slot(L, ts, 3, w, u, b, k, frame);
 }
 
 /* Cubic coefficients of the window's middle segment (docs/FORMAT.md's Hermite segment

@@ -45,8 +45,9 @@ class SplineSettings:
         The promise: max world-space position error per node, every frame.
     block_shift : int, default 5
         Blocks of 2**block_shift frames; every block start is a key of every track.
-    quant_fraction : float, default 0.4
+    quant_fraction : float, default 0.6
         Share of a track's error budget given to quantization (the rest to the curve fit).
+        Measured on dev clips: 0.4 and 0.6 tie at 1 cm; 0.6 is 2-4 % smaller at 0.1-0.02 cm.
     budget_scales : tuple of float, default (6.0,)
         Global scales tried on the per-track budgets (1 = worst-case additive errors); the
         smallest payload that meets the tolerance wins. Errors along a chain rarely add up
@@ -60,7 +61,7 @@ class SplineSettings:
 
     tolerance: Tolerance
     block_shift: int = 5
-    quant_fraction: float = 0.4
+    quant_fraction: float = 0.6
     budget_scales: tuple[float, ...] = (6.0,)
     max_repairs: int = 60
     shell_cm: float = 3.0
