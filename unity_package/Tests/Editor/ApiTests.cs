@@ -141,7 +141,7 @@ namespace Mocodec.Tests
             {
                 ClipInfo clip = asset.GetClipInfo(0);
                 MocodecTransform[] pose = new MocodecTransform[clip.NodeCount];
-                // Warm up: the first P/Invoke call builds its marshalling stub.
+                // Warm up: the first P/Invoke call generates its marshalling code.
                 asset.Sample(0, 0f, pose, SampleFlags.Loop);
                 context.Sample(0, 0f, pose, SampleFlags.Loop);
                 asset.TrySample(0, 0f, pose);
