@@ -143,14 +143,19 @@ CHAIN = """ROOT Hips
 }"""
 
 
-def _check(motion: Motion, tol: float) -> None:
+# The key-frame codecs share the fitting; the synthetic shapes run through both.
+KEYFRAME_CODECS = pytest.mark.parametrize("codec", ["spline", "rma"])
+
+
+def _check(motion: Motion, tol: float, codec: str = "spline") -> None:
     units = [resolve_units(motion.skeleton, "cm", None)]
-    result = encode_motions([motion], units, "spline", Tolerance(tol))
+    result = encode_motions([motion], units, codec, Tolerance(tol))
     err = _world_error_cm(Asset(result.asset), motion, 1.0)
     assert err.max() <= tol
 
 
-def test_root_that_turns_round_several_times():
+@KEYFRAME_CODECS
+def test_root_that_turns_round_several_times(codec):
     """Three full turns of yaw: more than an MRP can follow, so the root uses a twist track."""
     f = 600
     t = np.linspace(0, 1, f)
@@ -163,10 +168,11 @@ def test_root_that_turns_round_several_times():
     rows[:, 9:12] = 30 * np.cos(5 * np.pi * t)[:, None]
     rows[:, 12:15] = 40 * np.sin(3 * np.pi * t)[:, None]
     m = parse_bvh(_bvh(CHAIN, rows), name="spin")
-    _check(m, 0.5)
+    _check(m, 0.5, codec)
 
 
-def test_position_channels_on_every_joint():
+@KEYFRAME_CODECS
+def test_position_channels_on_every_joint(codec):
     hierarchy = CHAIN.replace("CHANNELS 3 Xrotation Zrotation Yrotation",
                               "CHANNELS 6 Xposition Yposition Zposition Xrotation Zrotation Yrotation")
     f = 200
@@ -179,15 +185,16 @@ def test_position_channels_on_every_joint():
     rows[:, 12:15] = 15 * np.sin(3 * np.pi * t)[:, None]
     rows[:, 15:18] = 35 * np.cos(2 * np.pi * t)[:, None]
     m = parse_bvh(_bvh(hierarchy, rows), name="stretch")
-    _check(m, 0.2)
+    _check(m, 0.2, codec)
 
 
+@KEYFRAME_CODECS
 @pytest.mark.parametrize("frames", [1, 2, 3, 33, 65])
-def test_short_clips_and_block_boundaries(frames):
+def test_short_clips_and_block_boundaries(frames, codec):
     t = np.linspace(0, 1, frames)
     rows = np.zeros((frames, 15))
     rows[:, 1] = 90
     rows[:, 6:9] = 30 * np.sin(5 * t)[:, None]
     rows[:, 12:15] = 60 * t[:, None]
     m = parse_bvh(_bvh(CHAIN, rows), name=f"short{frames}")
-    _check(m, 0.1)
+    _check(m, 0.1, codec)

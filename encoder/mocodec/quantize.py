@@ -57,3 +57,34 @@ class Quantizer:
 
     def roundtrip(self, v: np.ndarray) -> np.ndarray:
         return self.decode(self.encode(v))
+
+
+@dataclass
+class StepQuantizer:
+    """``v = q * step`` per component, ``|q| <= 2**24`` (codec ``rma``: the entropy coder
+    makes the range free, so no minimum or bit count is stored, only the step)."""
+
+    step: np.ndarray  # (d,) float32-exact, > 0
+
+    MAX_Q = 1 << 24
+
+    @classmethod
+    def for_range(cls, lo: np.ndarray, hi: np.ndarray, step: np.ndarray) -> "StepQuantizer":
+        """Quantizer with the given step (rounded to float32) for values within ``[lo, hi]``.
+        Raises ValueError when a value would need ``|q| > 2**24``."""
+        st = np.asarray(step, dtype=np.float32).astype(np.float64)
+        reach = np.maximum(np.abs(np.asarray(lo, dtype=np.float64)), np.abs(np.asarray(hi, dtype=np.float64)))
+        if np.any(st <= 0) or np.any(reach / st >= cls.MAX_Q):
+            raise ValueError(f"range {reach.max():.6g} needs more than 2**24 steps of {st.min():.3g}")
+        return cls(st)
+
+    def encode(self, v: np.ndarray) -> np.ndarray:
+        """Integers ``q`` (K, d) for values ``v`` (K, d)."""
+        return np.rint(np.asarray(v, dtype=np.float64) / self.step).astype(np.int64)
+
+    def decode(self, q: np.ndarray) -> np.ndarray:
+        """Values the runtime reconstructs (binary32 product, as the C code does)."""
+        return (np.asarray(q).astype(np.float32) * self.step.astype(np.float32)).astype(np.float64)
+
+    def roundtrip(self, v: np.ndarray) -> np.ndarray:
+        return self.decode(self.encode(v))

@@ -68,18 +68,6 @@ static uint64_t read_mask(const uint8_t* stream, uint64_t pos, uint32_t n) {
 }
 
 /* ---------------------------------------------------------------- validation */
-static int unit4(const uint8_t* p) {
-    float x = mcd_rd_f32(p), y = mcd_rd_f32(p + 4), z = mcd_rd_f32(p + 8), w = mcd_rd_f32(p + 12);
-    float n;
-    if (!mcd_finite(x) || !mcd_finite(y) || !mcd_finite(z) || !mcd_finite(w)) return 0;
-    n = x * x + y * y + z * z + w * w;
-    return n > 1.0f - 2e-5f && n < 1.0f + 2e-5f;
-}
-
-static int in_bounds(float v) {
-    return mcd_finite(v) && v <= MCD_MAX_ABS_VALUE && v >= -MCD_MAX_ABS_VALUE;
-}
-
 /* Check one descriptor of `avail` bytes; on success its kind and key bits are returned. */
 static mcd_result check_track(const uint8_t* t, uint32_t avail, uint32_t* out_size, uint8_t* out_kind,
                               uint8_t* out_keybits) {
@@ -94,8 +82,8 @@ static mcd_result check_track(const uint8_t* t, uint32_t avail, uint32_t* out_si
     for (c = 0; c < dims; ++c) {
         uint32_t bits = t[1 + c];
         float mn = mcd_rd_f32(t + head + 4 * c), st = mcd_rd_f32(t + head + 4 * (dims + c));
-        if (bits > 24u || !in_bounds(mn) || !mcd_finite(st) || st < 0.0f) return MCD_ERROR_MALFORMED;
-        if (!in_bounds(mn + (float)((1u << bits) - 1u) * st)) return MCD_ERROR_MALFORMED;
+        if (bits > 24u || !mcd_in_bounds(mn) || !mcd_finite(st) || st < 0.0f) return MCD_ERROR_MALFORMED;
+        if (!mcd_in_bounds(mn + (float)((1u << bits) - 1u) * st)) return MCD_ERROR_MALFORMED;
         keybits += bits;
     }
     if (kind != KIND_TRANSLATION) {
@@ -181,7 +169,7 @@ static mcd_result spline_validate(const mcd_clip_view* v) {
     read_layout(p, &L);
 
     for (i = 0; i < L.constants; ++i)
-        if (!in_bounds(mcd_rd_f32(L.consts + 4 * i))) return MCD_ERROR_MALFORMED;
+        if (!mcd_in_bounds(mcd_rd_f32(L.consts + 4 * i))) return MCD_ERROR_MALFORMED;
     for (i = 0, off = 0; i < L.tracks; ++i) {
         uint32_t size;
         mcd_result r = check_track(L.descs + off, L.desc_bytes - off, &size, &kinds[i], &keybits[i]);
@@ -197,7 +185,7 @@ static mcd_result spline_validate(const mcd_clip_view* v) {
         if (rm == 0) {
             if (ri != 0) return MCD_ERROR_MALFORMED;
         } else if (rm == 1) {
-            if (ri + 4u > L.constants || !unit4(L.consts + 4u * ri)) return MCD_ERROR_MALFORMED;
+            if (ri + 4u > L.constants || !mcd_unit_quat_at(L.consts + 4u * ri)) return MCD_ERROR_MALFORMED;
         } else if (rm == 2) {
             if (ri >= L.tracks || used[ri] || kinds[ri] == KIND_TRANSLATION) return MCD_ERROR_MALFORMED;
             used[ri] = 1;
@@ -513,21 +501,9 @@ static void advance(const layout* L, views* s, uint32_t u) {
     set_slot(L, ts, 3, w, u, b, k, frame);
 }
 
-/* Cubic coefficients of the window's middle segment (docs/FORMAT.md's Hermite segment
- * with finite-difference tangents, expanded in powers of s). */
+/* Cubic coefficients of the window's middle segment. */
 static void segment_coefficients(track_state* ts) {
-    float t0 = ts->t[0], t1 = ts->t[1], t2 = ts->t[2], t3 = ts->t[3];
-    float h = t2 - t1, a = h / (t2 - t0), b = h / (t3 - t1);
-    uint32_t c;
-    ts->inv_h = 1.0f / h;
-    for (c = 0; c < ts->dims; ++c) {
-        float p1 = ts->v[1][c], p2 = ts->v[2][c];
-        float m1 = a * (p2 - ts->v[0][c]), m2 = b * (ts->v[3][c] - p1);
-        ts->coef[c][0] = p1;
-        ts->coef[c][1] = m1;
-        ts->coef[c][2] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
-        ts->coef[c][3] = 2.0f * (p1 - p2) + m1 + m2;
-    }
+    ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, ts->dims, ts->coef);
 }
 
 static void eval_track(const track_state* ts, float x, float out[4]) {
@@ -535,17 +511,6 @@ static void eval_track(const track_state* ts, float x, float out[4]) {
     uint32_t c;
     for (c = 0; c < ts->dims; ++c)
         out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
-}
-
-static mcd_quat mrp_to_quat(const float p[3]) {
-    float s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-    float inv = 1.0f / (1.0f + s);
-    mcd_quat q;
-    q.x = 2.0f * p[0] * inv;
-    q.y = 2.0f * p[1] * inv;
-    q.z = 2.0f * p[2] * inv;
-    q.w = (1.0f - s) * inv;
-    return q;
 }
 
 static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {
@@ -568,18 +533,8 @@ static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {
         }
         if (ts->kind != KIND_TRANSLATION) {
             const uint8_t* r = d + head + 8u * ts->dims;
-            float p[3];
-            for (k = 0; k < 3; ++k) p[k] = (float)(int16_t)mcd_rd_u16(r + 2 * k) / 32767.0f;
-            ts->ref = mrp_to_quat(p);
-            if (ts->kind == KIND_TWIST) {
-                float n2 = 0.0f, inv;
-                for (k = 0; k < 3; ++k) {
-                    ts->axis[k] = (float)(int16_t)mcd_rd_u16(r + 8 + 2 * k) / 32767.0f;
-                    n2 += ts->axis[k] * ts->axis[k];
-                }
-                inv = 1.0f / sqrtf(n2);
-                for (k = 0; k < 3; ++k) ts->axis[k] *= inv;
-            }
+            ts->ref = mcd_reference_at(r);
+            if (ts->kind == KIND_TWIST) mcd_axis_at(r + 8, ts->axis);
         }
         off += desc_size(ts->kind);
     }
@@ -645,23 +600,8 @@ static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags,
         if (np->rot_track >= 0) {
             const track_state* ts = &s.tracks[np->rot_track];
             float val[4];
-            mcd_quat q;
             track_value(&L, &s, (uint32_t)np->rot_track, x, val);
-            if (ts->kind == KIND_MRP) {
-                q = mcd_qmul(ts->ref, mrp_to_quat(val));
-            } else {
-                float half = 0.5f * val[0], sn = sinf(half);
-                mcd_quat tw;
-                tw.x = ts->axis[0] * sn;
-                tw.y = ts->axis[1] * sn;
-                tw.z = ts->axis[2] * sn;
-                tw.w = cosf(half);
-                q = mcd_qmul(tw, mcd_qmul(ts->ref, mrp_to_quat(val + 1)));
-            }
-            out[i].rotation[0] = q.x;
-            out[i].rotation[1] = q.y;
-            out[i].rotation[2] = q.z;
-            out[i].rotation[3] = q.w;
+            mcd_set_rotation(out[i].rotation, mcd_track_rotation(ts->kind, ts->ref, ts->axis, val));
         }
         if (np->trans_track >= 0) {
             float val[4];

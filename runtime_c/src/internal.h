@@ -69,6 +69,48 @@ static inline void mcd_qrotate(mcd_quat q, const float v[3], float out[3]) {
     out[2] = v[2] + q.w * tz + (q.x * ty - q.y * tx);
 }
 
+/* Modified Rodrigues parameters -> unit quaternion (docs/FORMAT.md, spline track kind 1):
+ * rational, no trigonometry. */
+static inline mcd_quat mcd_mrp_to_quat(const float p[3]) {
+    float s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    float inv = 1.0f / (1.0f + s);
+    mcd_quat q;
+    q.x = 2.0f * p[0] * inv;
+    q.y = 2.0f * p[1] * inv;
+    q.z = 2.0f * p[2] * inv;
+    q.w = (1.0f - s) * inv;
+    return q;
+}
+
+/* A stored length or parameter: finite and within the format's bound. */
+static inline int mcd_in_bounds(float v) {
+    return mcd_finite(v) && v <= MCD_MAX_ABS_VALUE && v >= -MCD_MAX_ABS_VALUE;
+}
+
+/* Four f32 at p form a unit quaternion (within the format's 1e-5). */
+int mcd_unit_quat_at(const uint8_t* p);
+
+/* A track's reference rotation stored as i16 MRPs x 32767, and its twist axis stored as i16
+ * x 32767 and normalised (docs/FORMAT.md, SPLN descriptors). */
+mcd_quat mcd_reference_at(const uint8_t* p);
+void mcd_axis_at(const uint8_t* p, float axis[3]);
+
+/* Rotation of a curve track (kinds shared by `spline` and `rma`): kind 1 is MRPs relative to
+ * `ref`; kind 2 is a twist angle val[0] about `axis`, then MRPs val[1..3] relative to `ref`. */
+mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const float axis[3], const float* val);
+
+/* Write a track's rotation into a transform. */
+static inline void mcd_set_rotation(float out[4], mcd_quat q) {
+    out[0] = q.x;
+    out[1] = q.y;
+    out[2] = q.z;
+    out[3] = q.w;
+}
+
+/* Catmull-Rom segment [t1, t2] of keys (t0, v0) ... (t3, v3) as Horner coefficients in
+ * s = (x - t1) / (t2 - t1): coef[c][power], for `dims` components; returns 1 / (t2 - t1). */
+float mcd_segment_coefficients(const float t[4], const float v[4][4], uint32_t dims, float coef[4][4]);
+
 /* ---------------------------------------------------------------- clip view and codecs */
 /* Everything a codec needs to know about one clip, resolved from the container. */
 typedef struct mcd_clip_view {
@@ -116,6 +158,7 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
 /* Codec implementations. */
 extern const mcd_codec_ops mcd_codec_spline_ops;
 extern const mcd_codec_ops mcd_codec_neural_ops;
+extern const mcd_codec_ops mcd_codec_rma_ops;
 
 /* ---------------------------------------------------------------- container access */
 /* Resolve clip `clip` of an opened (validated) asset. */

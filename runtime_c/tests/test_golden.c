@@ -149,6 +149,7 @@ typedef struct asset_fact {
 static const asset_fact k_facts[] = {
     {"spline_09_11.mcd", 1, 1, {{"09_11", 166, 0}}},
     {"spline_library.mcd", 2, 2, {{"07_01", 317, 0}, {"02_01_head", 61, 1}}},
+    {"rma_library.mcd", 2, 2, {{"07_01", 317, 0}, {"09_11", 166, 1}}},
 };
 
 /* Every CMU skeleton here: 31 joints (1 ROOT + 30 JOINT) + 7 End Sites = 38 nodes. */
@@ -294,6 +295,7 @@ static void check_facts(const mcd_golden* g, const asset_fact* fact) {
         CHECK(fabs((double)ci.frame_rate * CMU_FRAME_TIME - 1.0) < 1e-6);
         /* make_golden.py: the spline_* assets are encoded with the spline codec */
         if (strncmp(fact->file, "spline_", 7) == 0) CHECK(ci.codec == MCD_CODEC_SPLINE);
+        if (strncmp(fact->file, "rma_", 4) == 0) CHECK(ci.codec == MCD_CODEC_RMA);
     }
     if (strcmp(fact->clips[0].name, "09_11") == 0) check_09_11_offsets(a);
 }
@@ -323,6 +325,7 @@ void test_queries_match_golden(void) {
         }
         CHECK_RESULT(mcd_resident_size(g[i].file.data, g[i].file.size, 0, &resident), MCD_OK);
         if (in_place) CHECK(resident == 0); /* spline clips are sampled in place (mocodec.h) */
+        if (fact && strncmp(fact->file, "rma_", 4) == 0) CHECK(resident > 0); /* rma decodes at open */
         if (fact) {
             known++;
             check_facts(&g[i], fact);

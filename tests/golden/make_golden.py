@@ -1,7 +1,9 @@
 """Write the golden assets of the current format version and the poses they must sample to.
 
 Run once per released format version (``python tests/golden/make_golden.py v1``); never rewrite
-the files of an earlier version: every later runtime must read them and reproduce the poses
+the files of an earlier version (the script only writes files that do not exist yet, so a codec
+added within a version gets its golden asset beside the others): every later runtime must read
+them and reproduce the poses
 (tests/test_golden.py, runtime_c/tests/test_golden.c, the C# and Godot tests).
 
 Poses file format (text, one record per sample):
@@ -49,12 +51,16 @@ def main(version: str) -> None:
     walk2 = read_bvh(SAMPLES / "02_01.bvh").slice(0, 61)
     walk2.name = "02_01_head"
     cases = {
-        "spline_09_11": ([run], 1.0),
-        "spline_library": ([walk, walk2], 0.5),  # two clips, two skeletons (subjects 07, 02)
+        "spline_09_11": ([run], 1.0, "spline"),
+        "spline_library": ([walk, walk2], 0.5, "spline"),  # two clips, two skeletons (subjects 07, 02)
+        "rma_library": ([walk, run], 1.0, "rma"),  # two clips, two skeletons (subjects 07, 09)
     }
-    for name, (motions, tol) in cases.items():
+    for name, (motions, tol, codec) in cases.items():
+        if (out / f"{name}.mcd").exists():
+            print(f"{name}: kept (golden files are never rewritten)")
+            continue
         units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
-        result = encode_motions(motions, units, "spline", Tolerance(tol))
+        result = encode_motions(motions, units, codec, Tolerance(tol))
         (out / f"{name}.mcd").write_bytes(result.asset)
         write_poses(result.asset, out / f"{name}.poses.txt")
         print(f"{name}: {len(result.asset)} bytes, max error {result.max_error_cm:.4f} cm")

@@ -66,10 +66,21 @@ def _per_clip(module: str, settings_class: str, stats: Callable[[Any], dict[str,
     return encode
 
 
+def _library(module: str):
+    """A codec entry point for codecs that encode the whole library at once (one section
+    with shared data): the module's own ``encode``."""
+
+    def encode(*args: Any, **kwargs: Any) -> CodecOutput:
+        return importlib.import_module(f"{__name__}.{module}").encode(*args, **kwargs)
+
+    return encode
+
+
 _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
     "spline": _per_clip("spline", "SplineSettings", lambda r: {
         "keys": r.keys, "tracks": r.tracks, "repairs": r.repairs, "budget_scale": r.scale,
         "encode_seconds": r.seconds}),
+    "rma": _library("rma"),
     "neural": _per_clip("neural", "NeuralSettings", lambda r: {
         "frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
         "stages": r.stages, "encode_seconds": r.seconds}),

@@ -202,8 +202,10 @@ def _constant_value(track: _Track) -> np.ndarray:
     return track.ref  # exactly what the runtime expands the stored codes to
 
 
-def _fit(track: _Track, mandatory: np.ndarray, fraction: float) -> None:
-    """Fold the track to a constant if that is within budget, else place its keys."""
+def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
+         quantizer_for: Callable[..., Quantizer] = Quantizer.for_range) -> None:
+    """Fold the track to a constant if that is within budget, else place its keys.
+    ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule)."""
     err = _track_error(track)
     frames = len(track.values)
     if track.kind != KIND_TWIST:
@@ -218,7 +220,7 @@ def _fit(track: _Track, mandatory: np.ndarray, fraction: float) -> None:
     while True:
         step = _quant_steps(track, fraction)
         try:
-            qz = Quantizer.for_range(track.values.min(axis=0), track.values.max(axis=0), step)
+            qz = quantizer_for(track.values.min(axis=0), track.values.max(axis=0), step)
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
@@ -238,17 +240,16 @@ def _block_starts(frames: int, shift: int) -> np.ndarray:
     return np.minimum(np.arange(blocks, dtype=np.int64) << shift, frames - 1)
 
 
-def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
-    """The ``SPLN`` payload of a clip (docs/FORMAT.md)."""
+def node_modes(motion: Motion, tracks: list[_Track]) -> tuple[list[tuple[int, int, int, int]], list[float], list[_Track]]:
+    """How each node is stored, shared by the key-frame codecs: per node (rotation_mode,
+    translation_mode, rotation_index, translation_index) as docs/FORMAT.md's SPLN node table
+    (0 rest/identity, 1 constant, 2 animated), the f32 constants, and the animated tracks in
+    node order (rotation before translation)."""
     sk = motion.skeleton
-    frames = motion.frame_count
-    starts = _block_starts(frames, shift)
-    nb = len(starts)
     animated = [t for t in tracks if t.keys is not None]
     index = {id(t): i for i, t in enumerate(animated)}
-
     constants: list[float] = []
-    node_rows = []
+    rows = []
     by_node: dict[tuple[int, bool], _Track] = {(t.node, t.is_rotation): t for t in tracks}
     for i in range(sk.node_count):
         rot = by_node.get((i, True))
@@ -259,14 +260,23 @@ def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
         elif rot is not None and not np.array_equal(rot.constant, [0, 0, 0, 1]):
             rm, ri = 1, len(constants)
             constants.extend(rot.constant.tolist())
-        elif rot is None and sk.rotation_order(i):
-            rm = 0  # identity on every frame
         if tr is not None and tr.keys is not None:
             tm, ti = 2, index[id(tr)]
         elif tr is not None and not np.array_equal(tr.constant, _f32_exact(sk.offsets[i])):
             tm, ti = 1, len(constants)
             constants.extend(tr.constant.tolist())
-        node_rows.append(struct.pack("<BBHHH", rm, tm, ri, ti, 0))
+        rows.append((rm, tm, ri, ti))
+    return rows, constants, animated
+
+
+def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
+    """The ``SPLN`` payload of a clip (docs/FORMAT.md)."""
+    sk = motion.skeleton
+    frames = motion.frame_count
+    starts = _block_starts(frames, shift)
+    nb = len(starts)
+    rows, constants, animated = node_modes(motion, tracks)
+    node_rows = [struct.pack("<BBHHH", rm, tm, ri, ti, 0) for rm, tm, ri, ti in rows]
 
     descs = []
     qvals = []
@@ -366,11 +376,13 @@ def encode_clip(
     cm_per_unit: float,
     settings: SplineSettings,
     check: CheckFn,
+    fitter_class: type | None = None,
 ) -> SplineClipResult:
     """Encode one clip so that every node's error, measured by ``check``, is within the
-    tolerance on every frame; the smallest payload over ``settings.budget_scales`` wins."""
+    tolerance on every frame; the smallest payload over ``settings.budget_scales`` wins.
+    ``fitter_class`` (a ``_ClipFitter`` subclass) lets another key-frame codec reuse this."""
     started = time.perf_counter()
-    fitter = _ClipFitter(motion, cm_per_unit, settings)
+    fitter = (fitter_class or _ClipFitter)(motion, cm_per_unit, settings)
     best: SplineClipResult | None = None
     failures = []
     for scale in settings.budget_scales:
@@ -410,6 +422,15 @@ class _ClipFitter:
     carried on down the chain, so each rotation only answers for its own bones.
     """
 
+    quantizer_for = staticmethod(Quantizer.for_range)
+
+    def _mandatory_keys(self) -> np.ndarray:
+        """Frames every track keys: the block starts of the SPLN layout."""
+        return _block_starts(self.frames, self.settings.block_shift)
+
+    def _payload(self, tracks: list[_Track]) -> bytes:
+        return serialize(self.motion, tracks, self.settings.block_shift)
+
     def __init__(self, motion: Motion, cm_per_unit: float, settings: SplineSettings) -> None:
         self.motion = motion
         self.settings = settings
@@ -419,7 +440,7 @@ class _ClipFitter:
         self.cm_per_unit = cm_per_unit
         self.tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
         self.shell = settings.shell_cm / cm_per_unit
-        self.mandatory = _block_starts(self.frames, settings.block_shift)
+        self.mandatory = self._mandatory_keys()
         self.has_rot = [bool(sk.rotation_order(i)) for i in range(sk.node_count)]
         self.has_trans = [bool(sk.position_axes(i)) for i in range(sk.node_count)]
         self.aim = [self._aim_points(i) for i in range(sk.node_count)]
@@ -512,7 +533,7 @@ class _ClipFitter:
             if key in tracks:
                 t = tracks[key]
                 if key in refit or t.keys is None and t.constant is None:
-                    _fit(t, self.mandatory, self.settings.quant_fraction)
+                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for)
                 local_t = _track_recon(t)
             else:
                 local_t = np.broadcast_to(_f32_exact(sk.offsets[i]), (self.frames, 3))
@@ -527,7 +548,7 @@ class _ClipFitter:
                 if key in refit or parent_moved or t.target is None:
                     target = self._rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
                     _retarget(t, target, self.motion, i)
-                    _fit(t, self.mandatory, self.settings.quant_fraction)
+                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for)
                 local_q = _track_recon(t)
             elif self.has_rot[i]:
                 local_q = self.motion.rotations[:, i]  # exactly identity on every frame
@@ -565,7 +586,7 @@ class _ClipFitter:
         self._decoded = None
         self._fit_pass(tracks, set(order))
         for repair in range(self.settings.max_repairs + 1):
-            payload = serialize(self.motion, list(tracks.values()), self.settings.block_shift)
+            payload = self._payload(list(tracks.values()))
             errors = check(payload)
             if np.all(errors <= self.tol_units[None, :]):
                 keys = sum(len(t.keys) for t in tracks.values() if t.keys is not None)

@@ -18,6 +18,14 @@ from ..motion import Skeleton
 _DESC_SIZE = {1: 36, 2: 56, 3: 28}
 
 
+def track_rotation(kind: int, ref: np.ndarray, axis: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    """Rotations a track's values mean (docs/FORMAT.md, SPLN "What a track value means")."""
+    if kind == 1:
+        return R.quat_multiply(ref, R.quat_from_mrp(v))
+    tw = R.quat_from_axis_angle(axis, v[:, 0])
+    return R.quat_multiply(tw, R.quat_multiply(ref, R.quat_from_mrp(v[:, 1:])))
+
+
 def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local rotations (len(x), N, 4) and translations (len(x), N, 3) at frame positions x."""
     frames, nodes, tracks, shift = struct.unpack_from("<IIIB", payload, 0)
@@ -93,12 +101,7 @@ def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[n
             rot[:, i] = consts[ri:ri + 4]
         elif rm == 2:
             kind, _, _, _, _, ref, axis = descs[ri]
-            v = values[ri]
-            if kind == 1:
-                rot[:, i] = R.quat_multiply(ref, R.quat_from_mrp(v))
-            else:
-                tw = R.quat_from_axis_angle(axis, v[:, 0])
-                rot[:, i] = R.quat_multiply(tw, R.quat_multiply(ref, R.quat_from_mrp(v[:, 1:])))
+            rot[:, i] = track_rotation(kind, ref, axis, values[ri])
         if tm == 1:
             trans[:, i] = consts[ti:ti + 3]
         elif tm == 2:

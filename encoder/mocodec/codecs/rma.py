@@ -1,0 +1,177 @@
+"""Codec ``rma``: a motion library as per-track Catmull-Rom keys placed freely in time (seed 003
+§5.1), quantized on a step lattice chosen by the tolerance (§5.2) and entropy coded with the
+runtime's coder (the lossless back-end the seed delegated to RAR), in one ``RMAL`` section
+(docs/FORMAT.md).
+
+It shares the spline codec's tolerance machinery (compensated top-down fitting, per-track
+budgets, repair through the C runtime) and differs in storage: no block grid forces keys every
+32 frames, key times are coded as entropy-coded gaps, key values as entropy-coded differences
+of lattice integers, and the per-clip tables are compact. The runtime decodes the section once
+at ``mcd_open`` into resident memory (dequantized keys and a seek table) and samples floats.
+
+What this codec does not do (yet) of seed 003: the PCA of virtual markers and the
+repeated-motion references. ``docs/RMA_STUDY.md`` measured why: on the CMU dev clips a
+max-1 cm promise needs 43-140 principal components per behaviour group and the
+PCA-coefficient streams come out about 4x larger than per-joint splines.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ..entropy import entropy_encode
+from ..motion import Motion
+from ..quantize import StepQuantizer
+from ..tolerance import Tolerance
+from . import CodecOutput, ProgressFn
+from . import spline
+from .spline import DIMS, KIND_TRANSLATION, KIND_TWIST, SplineClipResult, _ClipFitter, _Track, node_modes
+
+SECTION_HEADER = 16
+PAYLOAD_HEADER = 32
+SEEK_SHIFT = 5
+DESC_SIZE = {1: 20, 2: 32, 3: 16}
+
+
+@dataclass
+class RMASettings:
+    """Settings of the ``rma`` codec (every length in cm).
+
+    Parameters
+    ----------
+    tolerance : Tolerance
+        The promise: max world-space position error per node, every frame.
+    quant_fraction : float, default 0.6
+        Share of a track's error budget given to quantization (the rest to the curve fit).
+    budget_scales : tuple of float, default (6.0,)
+        Global scales tried on the per-track budgets; the smallest payload that meets the
+        tolerance wins (see ``SplineSettings``).
+    max_repairs : int, default 60
+        Rounds of check-through-the-runtime and budget tightening before giving up.
+    shell_cm : float, default 3.0
+        Every rotation is also held to a virtual vertex this far from its joint.
+    """
+
+    tolerance: Tolerance
+    quant_fraction: float = 0.6
+    budget_scales: tuple[float, ...] = (6.0,)
+    max_repairs: int = 60
+    shell_cm: float = 3.0
+
+    def __post_init__(self) -> None:
+        self.quant_fraction = float(self.quant_fraction)
+        if not 0.0 < self.quant_fraction < 1.0:
+            raise ValueError(f"quant_fraction must be in (0, 1), got {self.quant_fraction}")
+        if isinstance(self.budget_scales, (int, float, str)):
+            self.budget_scales = (float(self.budget_scales),)
+        self.budget_scales = tuple(float(x) for x in self.budget_scales)
+        self.max_repairs = int(self.max_repairs)
+
+
+def _align(n: int, a: int) -> int:
+    return (n + a - 1) // a * a
+
+
+def section_prefix(clip_count: int) -> bytes:
+    """The 16-byte ``RMAL`` section header."""
+    return struct.pack("<IIII", clip_count, 0, 0, 0)
+
+
+def serialize(motion: Motion, tracks: list[_Track]) -> bytes:
+    """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it)."""
+    sk = motion.skeleton
+    rows, constants, animated = node_modes(motion, tracks)
+    modes = bytes(rm | (tm << 2) for rm, tm, _, _ in rows).ljust(_align(sk.node_count, 4), b"\0")
+    descs, streams, gaps = [], [], []
+    keys = 0
+    for t in animated:
+        d = DIMS[t.kind]
+        q = t.quantizer.encode(t.key_values)
+        residual = np.diff(q, axis=0, prepend=np.zeros((1, d), dtype=np.int64))
+        stream = entropy_encode(residual.ravel(), channels=d)
+        step = t.quantizer.step
+        # One step for the three MRP or translation components (and a twist's own angle step).
+        assert np.all(step[-3:] == step[-1]), "the format stores one step per track"
+        if t.is_rotation:
+            desc = struct.pack("<BB3hIIf", t.kind, 0, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
+        else:
+            desc = struct.pack("<BBHIIf", t.kind, 0, 0, len(t.keys), len(stream), step[-1])
+        if t.kind == KIND_TWIST:
+            desc += struct.pack("<3hHf", *t.axis_codes.tolist(), 0, step[0])
+        descs.append(desc)
+        streams.append(stream)
+        gaps.append(np.diff(t.keys) - 1)
+        keys += len(t.keys)
+    gap_stream = entropy_encode(np.concatenate(gaps)) if gaps else b""
+    body = b"".join([modes, np.asarray(constants, dtype="<f4").tobytes(), *descs, gap_stream, *streams])
+    size = _align(PAYLOAD_HEADER + len(body), 4)
+    header = struct.pack("<IIIIIIII", size, motion.frame_count, sk.node_count, len(animated),
+                         len(constants), keys, 0, len(gap_stream))
+    return (header + body).ljust(size, b"\0")
+
+
+def resident_bytes(payload: bytes) -> int:
+    """Bytes the runtime decodes one payload into (docs/FORMAT.md, RMAL resident block)."""
+    _, frames, nodes, tracks, consts, keys = struct.unpack_from("<IIIIII", payload)
+    pos = PAYLOAD_HEADER + _align(nodes, 4) + 4 * consts
+    values = 0
+    for _ in range(tracks):
+        kind = payload[pos]
+        count = struct.unpack_from("<I", payload, pos + (4 if kind == KIND_TRANSLATION else 8))[0]
+        values += count * DIMS[kind]
+        pos += DESC_SIZE[kind]
+    seek = ((frames - 1) >> SEEK_SHIFT) + 1
+    return 16 + 16 * tracks + _align(4 * keys, 16) + _align(4 * values, 16) + _align(4 * tracks * seek, 16)
+
+
+def place(payloads: list[bytes]) -> list[bytes]:
+    """Set each payload's resident offset for a section holding them in this order."""
+    out, offset = [], 0
+    for p in payloads:
+        out.append(p[:24] + struct.pack("<I", offset) + p[28:])
+        offset += resident_bytes(p)
+    return out
+
+
+class _RMAFitter(_ClipFitter):
+    """The spline fitter with free key times and lattice quantization."""
+
+    quantizer_for = staticmethod(StepQuantizer.for_range)
+
+    def _mandatory_keys(self) -> np.ndarray:
+        return np.unique([0, self.frames - 1])
+
+    def _payload(self, tracks: list[_Track]) -> bytes:
+        return serialize(self.motion, tracks)
+
+
+def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
+                check: Callable[[bytes], np.ndarray]) -> SplineClipResult:
+    """Encode one clip within the tolerance on every frame (``check``: payload -> error)."""
+    return spline.encode_clip(motion, cm_per_unit, settings, check, _RMAFitter)  # type: ignore[arg-type]
+
+
+def encode(
+    motions: list[Motion],
+    cm_per_unit: list[float],
+    tolerance: Tolerance,
+    check: Callable[..., np.ndarray],
+    options: dict[str, Any],
+    progress: ProgressFn | None = None,
+) -> CodecOutput:
+    """Encode a library: every clip into one ``RMAL`` section."""
+    settings = RMASettings(tolerance=tolerance, **options)
+    one = section_prefix(1)
+    payloads, stats = [], []
+    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
+        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, one))
+        payloads.append(r.payload)
+        stats.append({"keys": r.keys, "tracks": r.tracks, "repairs": r.repairs,
+                      "budget_scale": r.scale, "encode_seconds": r.seconds,
+                      "resident_bytes": resident_bytes(r.payload)})
+        if progress:
+            progress(m.name)
+    return CodecOutput(payloads=place(payloads), section_prefix=section_prefix(len(payloads)), stats=stats)
