@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
 def markdown(report: dict) -> str:
     acl = report["acl_reference"] is not None
     head = ["tolerance cm", "bytes", "B/s", "ratio BVH f32", "ratio ACL 40B", "max cm", "p99 cm",
-            "mean cm", "encode s", "µs/pose seq", "µs/pose random", "µs world seq"]
+            "mean cm", "encode s", "µs/pose seq", "µs/pose random", "µs world seq", "resident B"]
     if acl:
         head += ["ACL bytes at same max err", "ours / ACL"]
     lines = [f"`{report['codec']}` on {report['clips']} clips ({report['frames']:,} frames) from "
@@ -131,7 +131,7 @@ def markdown(report: dict) -> str:
                  f"{r['ratio_bvh']:.1f}", f"{r['ratio_acl']:.1f}", f"{r['max_cm']:.4f}",
                  f"{r['p99_cm']:.4f}", f"{r['mean_cm']:.4f}", f"{r['encode_seconds']:.0f}",
                  f"{r['us_per_pose_local_sequential']:.2f}", f"{r['us_per_pose_local_random']:.2f}",
-                 f"{r['us_per_pose_world_sequential']:.2f}"]
+                 f"{r['us_per_pose_world_sequential']:.2f}", f"{r['resident_bytes']:,}"]
         if acl:
             cells += [f"{r['acl_bytes_at_same_max_error']:,.0f}", f"{r['size_vs_acl']:.3f}"]
         lines.append("| " + " | ".join(cells) + " |")

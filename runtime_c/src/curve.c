@@ -12,34 +12,6 @@ int mcd_unit_quat_at(const uint8_t* p) {
     return n > 1.0f - 2e-5f && n < 1.0f + 2e-5f;
 }
 
-mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const float axis[3], const float* val) {
-    float half, sn;
-    mcd_quat tw;
-    if (kind != 2u) return mcd_qmul(ref, mcd_mrp_to_quat(val));
-    half = 0.5f * val[0];
-    sn = sinf(half);
-    tw.x = axis[0] * sn;
-    tw.y = axis[1] * sn;
-    tw.z = axis[2] * sn;
-    tw.w = cosf(half);
-    return mcd_qmul(tw, mcd_qmul(ref, mcd_mrp_to_quat(val + 1)));
-}
-
-/* The Hermite segment with finite-difference tangents, expanded in powers of s. */
-float mcd_segment_coefficients(const float t[4], const float v[4][4], uint32_t dims, float coef[4][4]) {
-    float h = t[2] - t[1], a = h / (t[2] - t[0]), b = h / (t[3] - t[1]);
-    uint32_t c;
-    for (c = 0; c < dims; ++c) {
-        float p1 = v[1][c], p2 = v[2][c];
-        float m1 = a * (p2 - v[0][c]), m2 = b * (v[3][c] - p1);
-        coef[c][0] = p1;
-        coef[c][1] = m1;
-        coef[c][2] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
-        coef[c][3] = 2.0f * (p1 - p2) + m1 + m2;
-    }
-    return 1.0f / h;
-}
-
 mcd_quat mcd_reference_at(const uint8_t* p) {
     float r[3];
     uint32_t k;

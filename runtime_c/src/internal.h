@@ -2,6 +2,7 @@
 #ifndef MCD_INTERNAL_H
 #define MCD_INTERNAL_H
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 
