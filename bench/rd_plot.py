@@ -73,7 +73,7 @@ def read_series(path: Path) -> list[Series]:
     if not isinstance(data, dict):
         return []
     if isinstance(data.get("rows"), list):
-        s = Series(str(data.get("codec", path.stem)), data.get("clips"), data.get("frames"))
+        s = Series(str(data.get("label") or data.get("codec") or path.stem), data.get("clips"), data.get("frames"))
         s.points = sorted(p for p in map(_point, data["rows"]) if p is not None)
         return [s] if s.points else []
     clips = data.get("clips")
@@ -147,7 +147,8 @@ def plot(series: list[Series], acl: acl_reference.AclReference | None, out: Path
     axes[0].set_ylabel("size (bytes)")
     axes[0].set_title("size vs max error")
     axes[1].set_title("size vs mean error")
-    axes[1].legend(fontsize=7, loc="best")
+    for ax in axes:
+        ax.legend(fontsize=7, loc="best")
     fig.suptitle(f"CMU dev set ({DEV_CLIPS} clips, {DEV_FRAMES:,} frames, 120 Hz) unless marked")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
