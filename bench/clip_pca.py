@@ -622,7 +622,7 @@ def markdown(report: dict) -> str:
     elif o.get("sparse_frac", 0) > 0:
         extra = f" + sparse residual fixes above {o['sparse_frac']} x target (our extension)"
     lines = [f"`{report['codec']}` (Arikan 2006 as seed 003 describes it{extra}) on {report['clips']} clips "
-             f"({report['frames']:,} frames) from `{report['data']}`; {o['clusters']} clusters, "
+             f"({report['frames']:,} frames) from `{report['data']}`; {o['clusters']} cluster(s), "
              f"{o['clip_frames']}-frame clips, PCs per cluster by the {o.get('criterion', 'max')} "
              f"marker error of the truncation <= target, coefficient step {o['coef_step_frac']} x target", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]

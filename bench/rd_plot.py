@@ -125,9 +125,9 @@ def plot(series: list[Series], acl: acl_reference.AclReference | None, out: Path
         label = s.label if s.dev_set else f"{s.label} ({s.clips} clips, {s.frames:,} frames: other set)"
         if not s.dev_set:
             style.update(markerfacecolor="none", linestyle="--")
-        b = [p[0] for p in s.points]
-        axes[0].plot([p[1] for p in s.points], b, label=label, **style)
-        mean_pts = [(p[2], p[0]) for p in s.points if p[2] is not None]
+        # Lines follow the error axis of each panel (a sweep need not be monotonic in both).
+        axes[0].plot(*zip(*sorted((p[1], p[0]) for p in s.points)), label=label, **style)
+        mean_pts = sorted((p[2], p[0]) for p in s.points if p[2] is not None)
         if mean_pts:
             axes[1].plot(*zip(*mean_pts), label=label, **style)
     if acl is not None:
@@ -139,6 +139,11 @@ def plot(series: list[Series], acl: acl_reference.AclReference | None, out: Path
                          marker="s", linestyle=":", label="ACL 2.1 (totals table)")
             for name, b, _, mean in acl.totals:
                 axes[1].annotate(name, (mean, b), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    # The regime seed 003's ratios are read in: mean <= 2 cm, max <= 6 cm.
+    for ax, x in zip(axes, (6.0, 2.0)):
+        ax.axvline(x, color="0.5", linestyle="--", linewidth=0.8)
+        ax.annotate("seed 003 regime", (x, 1.0), xycoords=("data", "axes fraction"), fontsize=7,
+                    xytext=(-3, -12), textcoords="offset points", ha="right", color="0.4")
     for ax, what in zip(axes, ("max", "mean")):
         ax.set_xscale("log")
         ax.set_yscale("log")
