@@ -122,7 +122,12 @@ def plot(series: list[Series], acl: acl_reference.AclReference | None, out: Path
     markers = "osD^v<>pX*h"
     for i, s in enumerate(series):
         style = dict(marker=markers[i % len(markers)], linestyle="-", color=f"C{i % 10}")
-        label = s.label if s.dev_set else f"{s.label} ({s.clips} clips, {s.frames:,} frames: other set)"
+        if s.dev_set:
+            label = s.label
+        elif s.clips is None or s.frames is None:
+            label = f"{s.label} (clip set not stated)"
+        else:
+            label = f"{s.label} ({s.clips} clips, {s.frames:,} frames: other set)"
         if not s.dev_set:
             style.update(markerfacecolor="none", linestyle="--")
         # Lines follow the error axis of each panel (a sweep need not be monotonic in both).
