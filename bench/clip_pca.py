@@ -79,7 +79,6 @@ from mocodec.io import read_bvh  # noqa: E402
 from mocodec.kinematics import forward_kinematics  # noqa: E402
 from mocodec.metrics import ErrorMetric, ErrorReport, combine, size_report  # noqa: E402
 from mocodec.motion import Motion, Skeleton  # noqa: E402
-from mocodec.quantize import Quantizer  # noqa: E402
 from mocodec.rma import pca as C  # noqa: E402
 from mocodec.rma import preprocess as P  # noqa: E402
 from mocodec.units import resolve_units  # noqa: E402
