@@ -3,7 +3,7 @@ comparing at equal max error. Users without ../shared get no ACL column, not a m
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +19,9 @@ class AclReference:
     per_clip: dict[str, dict[str, int]]         # clip -> {"cm-default", "0.01u", "0.1u", "1.0u"}
     per_clip_err_01u: dict[str, float]          # clip -> max error cm at 0.1u
     decode_us: float
+    totals: list[tuple[str, int, float, float]] = field(default_factory=list)
+    """Rows of the Totals table: (setting, bytes, max err cm, mean err cm); the only ACL rows
+    with a mean error, so the mean-error panel of bench/rd_plot.py draws these."""
 
     def bytes_at_error(self, max_error_cm: float) -> float:
         """Whole-set bytes at a max error, interpolated on a log-log line between the sweep's
@@ -58,5 +61,9 @@ def load(path: Path = DEFAULT_PATH) -> AclReference | None:
     default = re.search(r"^\| cm-default \| 31 \| ([0-9,]+) \| [0-9,]+ \| ([0-9.]+) \|", text, re.M)
     if default:
         sweep.append((0.0, int(default.group(1).replace(",", "")), float(default.group(2))))
+    totals = []
+    section = text.split("## Totals", 1)[1].split("##", 1)[0]
+    for m in re.finditer(r"^\| ([\w.-]+) \| \d+ \| ([0-9,]+) \| [0-9,]+ \| ([0-9.]+) \| ([0-9.]+) \|", section, re.M):
+        totals.append((m.group(1), int(m.group(2).replace(",", "")), float(m.group(3)), float(m.group(4))))
     decode = re.search(r"\| 0\.1u \| 38 \| [0-9,]+ \| [0-9,]+ \| [0-9.]+ \| [0-9.]+ \| ([0-9.]+) \|", text)
-    return AclReference(sweep, per_clip, err, float(decode.group(1)) if decode else float("nan"))
+    return AclReference(sweep, per_clip, err, float(decode.group(1)) if decode else float("nan"), totals)
