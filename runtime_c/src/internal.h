@@ -97,8 +97,20 @@ mcd_quat mcd_reference_at(const uint8_t* p);
 void mcd_axis_at(const uint8_t* p, float axis[3]);
 
 /* Rotation of a curve track (kinds shared by `spline` and `rma`): kind 1 is MRPs relative to
- * `ref`; kind 2 is a twist angle val[0] about `axis`, then MRPs val[1..3] relative to `ref`. */
-mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const float axis[3], const float* val);
+ * `ref`; kind 2 is a twist angle val[0] about `axis`, then MRPs val[1..3] relative to `ref`.
+ * Inline: it runs once per rotation track per sample. */
+static inline mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const float axis[3], const float* val) {
+    float half, sn;
+    mcd_quat tw;
+    if (kind != 2u) return mcd_qmul(ref, mcd_mrp_to_quat(val));
+    half = 0.5f * val[0];
+    sn = sinf(half);
+    tw.x = axis[0] * sn;
+    tw.y = axis[1] * sn;
+    tw.z = axis[2] * sn;
+    tw.w = cosf(half);
+    return mcd_qmul(tw, mcd_qmul(ref, mcd_mrp_to_quat(val + 1)));
+}
 
 /* Write a track's rotation into a transform. */
 static inline void mcd_set_rotation(float out[4], mcd_quat q) {
