@@ -58,7 +58,8 @@ static float frame_position(float time_seconds, float rate, uint32_t frames, uin
     r = floorf(x + 0.5f);
     /* Times computed as frame / rate in float land a few ulps off the frame: snap them. */
     if ((flags & MCD_SAMPLE_NEAREST) || fabsf(x - r) < 1e-4f + 4e-7f * x) x = r;
-    if (x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
+    /* Rounding (NEAREST or the snap) can land on `last`, which loop mode shows as frame 0. */
+    if ((flags & MCD_SAMPLE_LOOP) ? !(x < last) : x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
     return x;
 }
 
