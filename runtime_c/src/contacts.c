@@ -321,6 +321,8 @@ void mcd_ik_dls(uint32_t count, const float joints[][3], const float e_f[3], con
         }
         trace = m[0][0] + m[1][1] + m[2][2];
         if (!(trace > 1e-300)) break; /* effector on every joint: nothing can move it */
+        /* Close enough: a millionth of the chain's reach (trace ~ its squared lever arms). */
+        if (v_dot(err, err) <= 1e-12 * trace) break;
         /* Damping relative to the chain's own scale: units do not matter. */
         lambda2 = 1e-3 * trace / 3.0;
         m[0][0] += lambda2; m[1][1] += lambda2; m[2][2] += lambda2;
@@ -332,6 +334,8 @@ void mcd_ik_dls(uint32_t count, const float joints[][3], const float e_f[3], con
             l = v_len(theta[j]);
             if (l > biggest) biggest = l;
         }
+        /* Converged (or at the closest point of an unreachable target): stop early. */
+        if (!(biggest > 1e-7)) break;
         if (biggest > 0.5) scale = 0.5 / biggest;
         for (j = 0; j < count; ++j) {
             double rv[3], rel[3], out[3];
@@ -374,11 +378,22 @@ static mcd_quat qconj(mcd_quat q) {
     return q;
 }
 
-/* World transforms from local ones, the same arithmetic as mcd_sample's MCD_SAMPLE_WORLD. */
-static void forward(const uint8_t* skeleton, uint32_t nodes, const mcd_transform* local, mcd_transform* world) {
+/* World transforms from local ones (the same arithmetic as mcd_sample's MCD_SAMPLE_WORLD) of
+ * the nodes in `need` (a set closed under parents: the paths from the roots to the effectors,
+ * all the contact pass reads). With first > 0, only the part of it under node `first`, after
+ * an IK changed that subtree. Parents come first, so one pass in index order suffices. */
+static void forward(const uint8_t* skeleton, uint32_t nodes, const mcd_transform* local, mcd_transform* world,
+                    const uint8_t* need, uint32_t first) {
+    uint8_t moved[MCD_MAX_NODES / 8u];
     uint32_t i;
-    for (i = 0; i < nodes; ++i) {
-        int32_t parent = parent_of(skeleton, i);
+    memset(moved, 0, sizeof moved);
+    for (i = first; i < nodes; ++i) {
+        int32_t parent;
+        if (!(need[i >> 3] & (1u << (i & 7u)))) continue;
+        parent = parent_of(skeleton, i);
+        if (first > 0 && i != first && (parent < 0 || !(moved[(uint32_t)parent >> 3] & (1u << ((uint32_t)parent & 7u)))))
+            continue;
+        moved[i >> 3] |= (uint8_t)(1u << (i & 7u));
         world[i] = local[i];
         if (parent >= 0) {
             const mcd_transform* p = &world[parent];
@@ -402,6 +417,18 @@ static void segment_offset(const uint8_t* g, const uint8_t* deltas, uint32_t k, 
     for (n = 0; n < 3u * k; ++n) {
         uint32_t nib = (n & 1u) ? (uint32_t)(dd[n >> 1] >> 4) : (uint32_t)(dd[n >> 1] & 15u);
         o[n % 3u] += nib >= 8u ? (int32_t)nib - 16 : (int32_t)nib;
+    }
+}
+
+/* The offset one frame on: b = a plus the deltas of segment frame k + 1. */
+static void segment_next(const uint8_t* g, const uint8_t* deltas, uint32_t k, const int32_t a[3], int32_t b[3]) {
+    const uint8_t* dd = deltas + mcd_rd_u32(g + 4);
+    uint32_t n, c;
+    for (c = 0; c < 3; ++c) {
+        uint32_t nib;
+        n = 3u * k + c;
+        nib = (n & 1u) ? (uint32_t)(dd[n >> 1] >> 4) : (uint32_t)(dd[n >> 1] & 15u);
+        b[c] = a[c] + (nib >= 8u ? (int32_t)nib - 16 : (int32_t)nib);
     }
 }
 
@@ -434,7 +461,7 @@ static float effector_state(const uint8_t* seg, const uint8_t* deltas, uint32_t 
             uint32_t k = f0 - mcd_rd_u32(g);
             segment_offset(g, deltas, k, a);
             if (fr > 0.0f) {
-                segment_offset(g, deltas, k + 1u, b);
+                segment_next(g, deltas, k, a, b);
             } else {
                 b[0] = a[0]; b[1] = a[1]; b[2] = a[2];
             }
@@ -502,6 +529,7 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
     uint32_t count = mcd_rd_u32(s), lo = 0, hi = count, k, effectors, active = 0;
     const uint8_t *blk, *seg, *deltas;
     float step, blend, weight[MCD_CONTACTS_MAX_EFFECTORS], target[MCD_CONTACTS_MAX_EFFECTORS][3];
+    uint8_t need[MCD_MAX_NODES / 8u];
     (void)size;
     /* The entry table is sorted by clip: binary search, no allocation. */
     while (lo < hi) {
@@ -515,19 +543,33 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
     effectors = mcd_rd_u16(blk + 12);
     seg = blk + BLOCK_HEADER + (size_t)effectors * EFFECTOR_SIZE;
     deltas = seg + (size_t)mcd_rd_u16(blk + 14) * SEGMENT_SIZE;
-    forward(view->skeleton, view->node_count, local, world);
-    /* Every target comes from the pre-IK pose: the encoder stored them against it. */
+    /* Weights and offsets first: no world pose is needed unless a contact is active. */
     for (k = 0; k < effectors; ++k) {
         const uint8_t* e = blk + BLOCK_HEADER + (size_t)k * EFFECTOR_SIZE;
-        float off[3] = {0.0f, 0.0f, 0.0f};
-        const float* p = world[mcd_rd_u16(e)].translation;
-        weight[k] = effector_state(seg, deltas, mcd_rd_u16(e + 4), mcd_rd_u16(e + 6), x, blend, off);
+        weight[k] = effector_state(seg, deltas, mcd_rd_u16(e + 4), mcd_rd_u16(e + 6), x, blend, target[k]);
         if (weight[k] > 0.0f) active++;
-        target[k][0] = p[0] + weight[k] * step * off[0];
-        target[k][1] = p[1] + weight[k] * step * off[1];
-        target[k][2] = p[2] + weight[k] * step * off[2];
     }
     if (active == 0) return;
+    /* The nodes the pass reads: every active effector and its ancestors. */
+    memset(need, 0, sizeof need);
+    for (k = 0; k < effectors; ++k) {
+        int32_t n = (int32_t)mcd_rd_u16(blk + BLOCK_HEADER + (size_t)k * EFFECTOR_SIZE);
+        if (weight[k] <= 0.0f) continue;
+        while (n >= 0 && !(need[(uint32_t)n >> 3] & (1u << ((uint32_t)n & 7u)))) {
+            need[(uint32_t)n >> 3] |= (uint8_t)(1u << ((uint32_t)n & 7u));
+            n = parent_of(view->skeleton, (uint32_t)n);
+        }
+    }
+    forward(view->skeleton, view->node_count, local, world, need, 0);
+    /* Every target comes from the pre-IK pose: the encoder stored them against it. */
+    for (k = 0; k < effectors; ++k) {
+        const float* p = world[mcd_rd_u16(blk + BLOCK_HEADER + (size_t)k * EFFECTOR_SIZE)].translation;
+        float w = weight[k] * step;
+        if (weight[k] <= 0.0f) continue;
+        target[k][0] = p[0] + w * target[k][0];
+        target[k][1] = p[1] + w * target[k][1];
+        target[k][2] = p[2] + w * target[k][2];
+    }
     for (k = 0; k < effectors; ++k) {
         const uint8_t* e = blk + BLOCK_HEADER + (size_t)k * EFFECTOR_SIZE;
         uint32_t node = mcd_rd_u16(e), solver = e[2], chain_len = e[3], chain[MCD_CONTACTS_MAX_CHAIN], j, m;
@@ -557,6 +599,6 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
             mcd_ik_dls(chain_len, (const float(*)[3])joints, world[node].translation, target[k], d, reached);
         }
         write_chain(view->skeleton, world, local, chain, chain_len, d, node);
-        forward(view->skeleton, view->node_count, local, world);
+        if (--active > 0) forward(view->skeleton, view->node_count, local, world, need, chain[0]);
     }
 }

@@ -13,7 +13,7 @@
 #define MCD_CONTACTS_MAX_CHAIN 4u
 #define MCD_CONTACTS_SOLVER_TWO_BONE 1u
 #define MCD_CONTACTS_SOLVER_DLS 2u
-#define MCD_CONTACTS_DLS_ITERATIONS 16u
+#define MCD_CONTACTS_DLS_ITERATIONS 16u /* at most: it stops once converged */
 
 /* Scratch bytes the contact pass needs (a world pose), multiple of 16. */
 size_t mcd_contacts_scratch_size(uint32_t max_nodes);
