@@ -197,7 +197,7 @@ def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], uni
             clips[i] = cc
     # Each round lowers the stored share of the correction by SHRINK on the frames (and the
     # frames around them, so targets stay smooth) where some node is over the tolerance.
-    shrink, spread, rounds = 0.2, 3, 24
+    shrink, spread, rounds = 0.1, 1, 40
     for _ in range(rounds + 1):
         builder.contacts = C.contacts_section(clips) if clips else None
         asset = builder.build()
