@@ -33,8 +33,11 @@ static int32_t parent_of(const uint8_t* skeleton, uint32_t node) {
     return mcd_rd_i32(skeleton + 16 + (size_t)node * MCD_SKEL_NODE_SIZE);
 }
 
+/* Bytes of the offset caches at the start of the contact scratch (offset_cache is 24 bytes). */
+#define CACHE_BYTES (MCD_CONTACTS_MAX_EFFECTORS * 24u)
+
 size_t mcd_contacts_scratch_size(uint32_t max_nodes) {
-    size_t n = (size_t)max_nodes * sizeof(mcd_transform);
+    size_t n = CACHE_BYTES + (size_t)max_nodes * sizeof(mcd_transform);
     return (n + 15u) & ~(size_t)15u;
 }
 
@@ -420,6 +423,38 @@ static void segment_offset(const uint8_t* g, const uint8_t* deltas, uint32_t k, 
     }
 }
 
+/* Sequential playback cache, one per effector, in the contact scratch: the integer offset at
+ * segment frame k of a segment, so the next sample continues the delta walk instead of
+ * restarting it. The sums are exact integers, so the result never depends on the cache. */
+typedef struct offset_cache {
+    uint32_t clip_plus1; /* 0: empty (mcd_scratch_init zeroes the scratch) */
+    uint32_t segment;
+    uint32_t k;
+    int32_t o[3];
+} offset_cache;
+
+typedef char offset_cache_fits[sizeof(offset_cache) == 24u ? 1 : -1];
+
+static void cached_offset(offset_cache* c, uint32_t clip, uint32_t segment, const uint8_t* g, const uint8_t* deltas,
+                          uint32_t k, int32_t o[3]) {
+    const uint8_t* dd = deltas + mcd_rd_u32(g + 4);
+    uint32_t n, from = 0;
+    if (c->clip_plus1 == clip + 1u && c->segment == segment && c->k <= k) {
+        from = c->k;
+        o[0] = c->o[0]; o[1] = c->o[1]; o[2] = c->o[2];
+    } else {
+        o[0] = (int8_t)g[10]; o[1] = (int8_t)g[11]; o[2] = (int8_t)g[12];
+    }
+    for (n = 3u * from; n < 3u * k; ++n) {
+        uint32_t nib = (n & 1u) ? (uint32_t)(dd[n >> 1] >> 4) : (uint32_t)(dd[n >> 1] & 15u);
+        o[n % 3u] += nib >= 8u ? (int32_t)nib - 16 : (int32_t)nib;
+    }
+    c->clip_plus1 = clip + 1u;
+    c->segment = segment;
+    c->k = k;
+    c->o[0] = o[0]; c->o[1] = o[1]; c->o[2] = o[2];
+}
+
 /* The offset one frame on: b = a plus the deltas of segment frame k + 1. */
 static void segment_next(const uint8_t* g, const uint8_t* deltas, uint32_t k, const int32_t a[3], int32_t b[3]) {
     const uint8_t* dd = deltas + mcd_rd_u32(g + 4);
@@ -443,7 +478,7 @@ static float ramp(float dist, float blend) {
 
 /* Weight and offset (in steps) of one effector at frame position x. */
 static float effector_state(const uint8_t* seg, const uint8_t* deltas, uint32_t first, uint32_t count, float x,
-                            float blend, float off[3]) {
+                            float blend, float off[3], offset_cache* cache, uint32_t clip) {
     uint32_t f0 = (uint32_t)x, lo = 0, hi = count, i, end;
     float fr = x - (float)f0;
     const uint8_t* g;
@@ -459,7 +494,7 @@ static float effector_state(const uint8_t* seg, const uint8_t* deltas, uint32_t 
         end = mcd_rd_u32(g) + mcd_rd_u16(g + 8) - 1u;
         if (f0 < end || (f0 == end && fr == 0.0f)) { /* inside the segment */
             uint32_t k = f0 - mcd_rd_u32(g);
-            segment_offset(g, deltas, k, a);
+            cached_offset(cache, clip, i, g, deltas, k, a);
             if (fr > 0.0f) {
                 segment_next(g, deltas, k, a, b);
             } else {
@@ -471,7 +506,7 @@ static float effector_state(const uint8_t* seg, const uint8_t* deltas, uint32_t 
             return 1.0f;
         }
         if (f0 == end) {
-            segment_offset(g, deltas, end - mcd_rd_u32(g), a);
+            cached_offset(cache, clip, i, g, deltas, end - mcd_rd_u32(g), a);
             if (lo < count && mcd_rd_u32(seg + (size_t)(i + 1u) * SEGMENT_SIZE) == end + 1u) {
                 /* The next segment starts on the next frame: cross over linearly. */
                 segment_offset(seg + (size_t)(i + 1u) * SEGMENT_SIZE, deltas, 0, b);
@@ -494,7 +529,7 @@ static float effector_state(const uint8_t* seg, const uint8_t* deltas, uint32_t 
                 }
             }
             if (w_after <= 0.0f) return 0.0f;
-            segment_offset(g, deltas, end - mcd_rd_u32(g), a);
+            cached_offset(cache, clip, i, g, deltas, end - mcd_rd_u32(g), a);
             off[0] = (float)a[0]; off[1] = (float)a[1]; off[2] = (float)a[2];
             return w_after;
         }
@@ -525,7 +560,9 @@ static void write_chain(const uint8_t* skeleton, const mcd_transform* world, mcd
 
 void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mcd_clip_view* view, float x,
                         mcd_transform* local, void* scratch) {
-    mcd_transform* world = (mcd_transform*)scratch;
+    /* Contact scratch: the offset caches, then the world pose. */
+    offset_cache* cache = (offset_cache*)scratch;
+    mcd_transform* world = (mcd_transform*)((uint8_t*)scratch + CACHE_BYTES);
     uint32_t count = mcd_rd_u32(s), lo = 0, hi = count, k, effectors, active = 0;
     const uint8_t *blk, *seg, *deltas;
     float step, blend, weight[MCD_CONTACTS_MAX_EFFECTORS], target[MCD_CONTACTS_MAX_EFFECTORS][3];
@@ -546,7 +583,8 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
     /* Weights and offsets first: no world pose is needed unless a contact is active. */
     for (k = 0; k < effectors; ++k) {
         const uint8_t* e = blk + BLOCK_HEADER + (size_t)k * EFFECTOR_SIZE;
-        weight[k] = effector_state(seg, deltas, mcd_rd_u16(e + 4), mcd_rd_u16(e + 6), x, blend, target[k]);
+        weight[k] = effector_state(seg, deltas, mcd_rd_u16(e + 4), mcd_rd_u16(e + 6), x, blend, target[k],
+                                   &cache[k], clip);
         if (weight[k] > 0.0f) active++;
     }
     if (active == 0) return;

@@ -15,7 +15,8 @@
 #define MCD_CONTACTS_SOLVER_DLS 2u
 #define MCD_CONTACTS_DLS_ITERATIONS 16u /* at most: it stops once converged */
 
-/* Scratch bytes the contact pass needs (a world pose), multiple of 16. */
+/* Scratch bytes the contact pass needs (per-effector offset caches and a world pose), multiple
+ * of 16. */
 size_t mcd_contacts_scratch_size(uint32_t max_nodes);
 
 /* Check every byte of a CNTC section against an asset whose clip directory is already valid. */
