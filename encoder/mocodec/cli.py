@@ -137,7 +137,8 @@ def _encode(args: argparse.Namespace):
         print(f"encoding {len(motions)} clip(s) with codec {args.codec!r}, tolerance "
               f"{args.tolerance} cm{eff}", file=sys.stderr)
     progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
-    result = encode_motions(motions, units, args.codec, tolerance, _codec_options(args), progress)
+    result = encode_motions(motions, units, args.codec, tolerance, _codec_options(args), progress,
+                            contacts=bool(getattr(args, "contacts", False)))
     return motions, result
 
 
@@ -362,6 +363,10 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per file unit")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
                    help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
+    p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
+                   help="store foot contact trajectories that the runtime restores by IK "
+                        "(MCD_SAMPLE_CONTACTS); errors are measured with them applied "
+                        "(default: off)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 

@@ -128,6 +128,8 @@ class AssetBuilder:
     codec_prefix: dict[str, bytes] = field(default_factory=dict)
     """Bytes a codec keeps at the start of its section, before the clip payloads (data that
     clips share, such as a library's PCA axes)."""
+    contacts: bytes | None = None
+    """The optional ``CNTC`` section (contact trajectories, :mod:`mocodec.contacts`)."""
 
     def add_skeleton(self, skeleton: Skeleton, cm_per_unit: float) -> int:
         """Index of the skeleton, added unless an equal one (same offsets) is there."""
@@ -163,6 +165,8 @@ class AssetBuilder:
             codec_section[codec] = len(sections)
             sections.append(Section(CODEC_SECTION_KINDS[codec], bytes(blob)))
         sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets))
+        if self.contacts:
+            sections.append(Section(b"CNTC", self.contacts))
         return build_asset(sections)
 
 

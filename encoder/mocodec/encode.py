@@ -75,15 +75,16 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
 
 
 def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoice]",
-             clip_names: list[str] | None = None) -> list[ErrorReport]:
-    """Decode each clip of ``asset`` through the runtime and compare with ``motions``."""
+             clip_names: list[str] | None = None, contacts: bool = False) -> list[ErrorReport]:
+    """Decode each clip of ``asset`` through the runtime and compare with ``motions``
+    (``contacts``: with the contact trajectories applied, as an engine samples them)."""
     a = asset if isinstance(asset, Asset) else Asset(asset)
     names = clip_names or [m.name for m in motions]
     reports = []
     for m, u, name in zip(motions, units, names):
         rot_o, pos_o = forward_kinematics(m.skeleton, m.rotations, m.translations)
-        rot_d, pos_d = decode_world(a, name)
-        local_d, _ = a.sample_frames(name, world=False)
+        rot_d, pos_d = a.sample_frames(name, world=True, contacts=contacts)
+        local_d, _ = a.sample_frames(name, world=False, contacts=contacts)
         metric = ErrorMetric(cm_per_unit=u.cm_per_unit, height_units=u.height_units)
         reports.append(metric.evaluate(m.skeleton, (rot_o, pos_o), (rot_d, pos_d), m.rotations, local_d))
     return reports
@@ -96,8 +97,12 @@ def encode_motions(
     tolerance: Tolerance | None = None,
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
+    contacts: bool = False,
 ) -> EncodeResult:
     """Encode ``motions`` (one clip each) into one asset and measure it through the runtime.
+
+    ``contacts`` adds foot contact trajectories (a ``CNTC`` section, :mod:`mocodec.contacts`)
+    and measures every error with them applied by the runtime's IK.
 
     Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip.
     """
@@ -124,7 +129,10 @@ def encode_motions(
         builder.add_clip(ClipEntry(m.name, s, codec, payload, m.frame_count, m.frame_rate))
     # First pass measures the asset; the second writes the measured errors into META.
     asset = builder.build()
-    reports = evaluate(asset, motions, units)
+    contact_stats: list[dict[str, Any]] = [{} for _ in motions]
+    if contacts:
+        asset, contact_stats = add_contacts(builder, asset, motions, units, tolerance)
+    reports = evaluate(asset, motions, units, contacts=contacts)
     elapsed = time.perf_counter() - started
     tol_nodes = [tolerance.per_node_cm(m.skeleton) for m in motions]
     for m, r, t in zip(motions, reports, tol_nodes):
@@ -138,7 +146,8 @@ def encode_motions(
         "encoder": f"mocodec {__version__}",
         "codec": codec,
         "settings": {"tolerance_cm": tolerance.tolerance_cm,
-                     "effector_tolerance_cm": tolerance.effector_tolerance_cm},
+                     "effector_tolerance_cm": tolerance.effector_tolerance_cm,
+                     "contacts": contacts},
         "clips": {
             m.name: {
                 "max_error_cm": round(r.max_cm, 6),
@@ -154,8 +163,96 @@ def encode_motions(
     }
     asset = builder.build()
     stats = out.stats or [{} for _ in motions]
-    for s, payload in zip(stats, out.payloads):
+    for s, payload, cs in zip(stats, out.payloads, contact_stats):
         s["payload_bytes"] = len(payload)
+        s.update(cs)
     clips = [ClipReport(m.name, m.frame_count, r, u, s)
              for m, r, u, s in zip(motions, reports, units, stats)]
     return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed)
+
+
+def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], units: "list[UnitsChoice]",
+                 tolerance: Tolerance) -> tuple[bytes, list[dict[str, Any]]]:
+    """Detect contacts on the originals, store them against the decoded pose of ``asset``
+    (built by ``builder`` without contacts) and return the asset with its ``CNTC`` section.
+
+    The IK moves knees and hips: a segment whose IK pushes any node of any frame it touches
+    past the tolerance is shrunk (a smaller share of the correction is stored) and, if that
+    is not enough, left out; the check is repeated until no node is over."""
+    from . import contacts as C
+
+    a = Asset(asset)
+    clips: dict[int, C.ClipContacts] = {}
+    stats: list[dict[str, Any]] = [{} for _ in motions]
+    originals = []
+    for i, (m, u) in enumerate(zip(motions, units)):
+        _, orig = forward_kinematics(m.skeleton, m.rotations, m.translations)
+        originals.append(orig)
+        _, dec = decode_world(a, m.name)
+        masks = C.detect_contacts(m.skeleton, orig, m.frame_rate, u.cm_per_unit)
+        cc = C.build_clip_contacts(m.skeleton, masks, orig, dec, m.frame_rate, u.cm_per_unit)
+        stats[i] = {"contact_frames": int(sum(int(v.sum()) for v in masks.values())),
+                    "contact_segments": cc.segment_count if cc else 0, "contact_segments_dropped": 0}
+        if cc is not None:
+            clips[i] = cc
+    # Each round lowers the stored share of the correction by SHRINK on the frames (and the
+    # frames around them, so targets stay smooth) where some node is over the tolerance.
+    shrink, spread, rounds = 0.1, 1, 40
+    for _ in range(rounds + 1):
+        builder.contacts = C.contacts_section(clips) if clips else None
+        asset = builder.build()
+        if not clips:
+            break
+        a = Asset(asset)
+        changed = False
+        for i in list(clips):
+            m, u, cc = motions[i], units[i], clips[i]
+            _, pos = a.sample_frames(m.name, world=True, contacts=True)
+            err = np.linalg.norm(pos - originals[i], axis=-1) * u.cm_per_unit
+            over_nodes = err > tolerance.per_node_cm(m.skeleton)[None, :]
+            if not over_nodes.any():
+                continue
+            # A frame is influenced by segments up to the blend length (+1 for interpolation) away.
+            reach = int(np.ceil(cc.blend_frames)) + 1 + spread
+            for e in cc.effectors:
+                # Only the nodes this effector's IK can move: the subtree of its chain's root.
+                root = e.node
+                for _ in range(e.chain):
+                    root = int(m.skeleton.parents[root])
+                moved = [root] + m.skeleton.descendants(root)
+                over = over_nodes[:, moved].any(axis=1)
+                if not over.any():
+                    continue
+                grown = np.convolve(over, np.ones(2 * reach + 1), mode="same") > 0
+                keep = []
+                for s in e.segments:
+                    hit = grown[s.start:s.end + 1]
+                    if hit.any():
+                        changed = True
+                        sc = s.current_scale().copy()
+                        if sc[hit].max() <= -1.0:
+                            stats[i]["contact_segments_dropped"] += 1
+                            continue
+                        sc[hit] = np.maximum(sc[hit] - shrink, -1.0)
+                        s.rescale(sc)
+                    keep.append(s)
+                e.segments = keep
+            if not cc.prune().effectors:
+                del clips[i]
+        if not changed:
+            break
+    else:
+        # Out of rounds: a clip still over the tolerance keeps no contacts at all.
+        a = Asset(asset)
+        for i in list(clips):
+            m, u = motions[i], units[i]
+            _, pos = a.sample_frames(m.name, world=True, contacts=True)
+            err = np.linalg.norm(pos - originals[i], axis=-1) * u.cm_per_unit
+            if (err > tolerance.per_node_cm(m.skeleton)[None, :]).any():
+                stats[i]["contact_segments_dropped"] += clips.pop(i).segment_count
+        builder.contacts = C.contacts_section(clips) if clips else None
+        asset = builder.build()
+    for i, cc in clips.items():
+        stats[i]["contact_segments"] = cc.segment_count
+        stats[i]["contact_bytes"] = len(C.clip_block(cc)) + 8
+    return asset, stats

@@ -72,6 +72,10 @@ typedef enum mcd_result {
 #define MCD_SAMPLE_WORLD 0x1u   /* output model-space transforms instead of local ones */
 #define MCD_SAMPLE_LOOP 0x2u    /* wrap time into the clip instead of clamping */
 #define MCD_SAMPLE_NEAREST 0x4u /* round to the nearest frame instead of interpolating */
+/* Rectify the pose with the clip's contact trajectories (CNTC section, docs/FORMAT.md): feet
+ * (and hands) in contact are pulled to their stored targets by IK, blended in and out at the
+ * ends of each contact. Changes local rotations only. A no-op for clips without contacts. */
+#define MCD_SAMPLE_CONTACTS 0x8u
 
 /* Codec identifiers (clip directory). */
 typedef enum mcd_codec {

@@ -3,6 +3,7 @@
  * arithmetic on sizes is done in 64 bits so it cannot wrap. */
 #include <string.h>
 
+#include "contacts.h"
 #include "internal.h"
 
 static const uint8_t k_magic[8] = {0x89, 0x4D, 0x43, 0x44, 0x0D, 0x0A, 0x1A, 0x0A};
@@ -10,6 +11,7 @@ static const uint8_t k_magic[8] = {0x89, 0x4D, 0x43, 0x44, 0x0D, 0x0A, 0x1A, 0x0
 #define KIND_SKEL mcd_fourcc('S', 'K', 'E', 'L')
 #define KIND_CLIP mcd_fourcc('C', 'L', 'I', 'P')
 #define KIND_META mcd_fourcc('M', 'E', 'T', 'A')
+#define KIND_CNTC mcd_fourcc('C', 'N', 'T', 'C')
 
 float mcd_rd_f32(const uint8_t* p) {
     uint32_t u = mcd_rd_u32(p);
@@ -154,6 +156,7 @@ typedef struct table_scan {
     uint32_t clip_section; /* index */
     uint32_t clip_count_sections;
     uint32_t meta_count;
+    uint32_t contacts_section; /* index + 1, 0 = none */
     uint32_t codec_sections[MCD_MAX_CODEC_ID + 1]; /* per codec id: section index + 1, 0 = none */
 } table_scan;
 
@@ -178,6 +181,11 @@ static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t)
         } else if (kind == KIND_META) {
             if (version != 1) return MCD_ERROR_UNSUPPORTED;
             t->meta_count++;
+        } else if (kind == KIND_CNTC) {
+            /* Checked after the clip directory, which it refers to. At most one. */
+            if (version != 1) return MCD_ERROR_UNSUPPORTED;
+            if (t->contacts_section) return MCD_ERROR_MALFORMED;
+            t->contacts_section = i + 1;
         } else {
             const mcd_codec_ops* ops = mcd_find_codec_by_kind(kind);
             if (ops) {
@@ -312,7 +320,29 @@ static mcd_result validate_into(const void* data, size_t size, uint32_t flags, m
         if (n > a->max_nodes) a->max_nodes = n;
     }
     for (i = 0; i <= MCD_MAX_CODEC_ID && i < 8; ++i) a->codec_sections[i] = t.codec_sections[i];
-    return check_clips(a, t.clip_section);
+    r = check_clips(a, t.clip_section);
+    if (r != MCD_OK || !t.contacts_section) return r;
+    {
+        const uint8_t* e = d + MCD_HEADER_SIZE + (size_t)(t.contacts_section - 1u) * MCD_SECTION_ENTRY_SIZE;
+        r = mcd_contacts_validate(a, d + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12));
+        if (r != MCD_OK) return r;
+        /* The contact pass keeps a world pose after the codec's scratch area. */
+        a->scratch_size += (uint32_t)mcd_contacts_scratch_size(a->max_nodes);
+    }
+    return MCD_OK;
+}
+
+uint32_t mcd_contacts_section(const mcd_asset* asset, uint32_t* out_size) {
+    uint32_t i;
+    for (i = 0; i < asset->section_count; ++i) {
+        const uint8_t* e = asset->data + asset->section_table + (size_t)i * MCD_SECTION_ENTRY_SIZE;
+        if (mcd_rd_u32(e) == KIND_CNTC) {
+            *out_size = mcd_rd_u32(e + 12);
+            return mcd_rd_u32(e + 8);
+        }
+    }
+    *out_size = 0;
+    return 0;
 }
 
 /* Resident layout: one 16-aligned block per codec section that asks for one, in codec id

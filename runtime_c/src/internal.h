@@ -178,6 +178,9 @@ extern const mcd_codec_ops mcd_codec_rma_ops;
 mcd_result mcd_clip_view_get(const mcd_asset* asset, uint32_t clip, mcd_clip_view* out,
                              const mcd_codec_ops** out_ops);
 
+/* Offset (and size) of the asset's CNTC section, or 0 when it has none. */
+uint32_t mcd_contacts_section(const mcd_asset* asset, uint32_t* out_size);
+
 /* Offset of skeleton `index`'s SKEL section, or 0 when there is none. */
 uint32_t mcd_skeleton_offset(const mcd_asset* asset, uint32_t index);
 

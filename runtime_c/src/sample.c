@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "contacts.h"
 #include "internal.h"
 
 #define SCRATCH_MAGIC 0x5343444Du /* "MDCS" */
@@ -14,6 +15,8 @@ typedef struct scratch_header {
     const uint8_t* data; /* the asset it was initialised for */
     uint64_t asset_size;
     uint32_t crc;
+    uint32_t contacts;      /* offset of the CNTC section, 0 when the asset has none */
+    uint32_t contacts_size;
 } scratch_header;
 
 typedef char scratch_header_fits[sizeof(scratch_header) <= MCD_SCRATCH_HEADER_SIZE ? 1 : -1];
@@ -34,6 +37,7 @@ mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratc
     h->data = asset->data;
     h->asset_size = asset->size;
     h->crc = mcd_rd_u32(asset->data + 20);
+    h->contacts = mcd_contacts_section(asset, &h->contacts_size);
     return MCD_OK;
 }
 
@@ -54,7 +58,8 @@ static float frame_position(float time_seconds, float rate, uint32_t frames, uin
     r = floorf(x + 0.5f);
     /* Times computed as frame / rate in float land a few ulps off the frame: snap them. */
     if ((flags & MCD_SAMPLE_NEAREST) || fabsf(x - r) < 1e-4f + 4e-7f * x) x = r;
-    if (x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
+    /* Rounding (NEAREST or the snap) can land on `last`, which loop mode shows as frame 0. */
+    if ((flags & MCD_SAMPLE_LOOP) ? !(x < last) : x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
     return x;
 }
 
@@ -81,7 +86,7 @@ static void local_to_world(const uint8_t* skeleton, uint32_t nodes, mcd_transfor
 
 mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds, uint32_t flags,
                       mcd_transform* out_pose, uint32_t pose_capacity, void* scratch) {
-    const uint32_t known = MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST;
+    const uint32_t known = MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS;
     scratch_header* h = (scratch_header*)scratch;
     mcd_clip_view view;
     const mcd_codec_ops* ops;
@@ -103,6 +108,11 @@ mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
     if (r != MCD_OK) {
         h->clip = UINT32_MAX;
         return r;
+    }
+    if ((flags & MCD_SAMPLE_CONTACTS) && h->contacts) {
+        /* The contact pass's world pose lies at the end of the scratch (container.c sizes it). */
+        uint8_t* area = (uint8_t*)scratch + asset->scratch_size - mcd_contacts_scratch_size(asset->max_nodes);
+        mcd_contacts_apply(asset->data + h->contacts, h->contacts_size, clip, &view, x, out_pose, area);
     }
     if (flags & MCD_SAMPLE_WORLD) local_to_world(view.skeleton, view.node_count, out_pose);
     return MCD_OK;

@@ -90,7 +90,7 @@ static int exercise_clip(const mcd_asset* a, uint32_t c, void* scratch, mcd_tran
     for (t = 0; t < sizeof times / sizeof times[0]; ++t) {
         /* A valid asset may have a huge duration; time arithmetic above can then overflow. */
         if (!finite3(&times[t], 1)) continue;
-        for (flags = 0; flags <= (MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST); ++flags) {
+        for (flags = 0; flags <= (MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS); ++flags) {
             int ok;
             r = mcd_sample(a, c, times[t], flags, pose, ci.node_count, scratch);
             if (r != MCD_OK) return broken(why, why_size, "clip %u t=%g flags=%u: sample gave %d", c, times[t], flags, (int)r);

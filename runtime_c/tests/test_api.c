@@ -103,7 +103,7 @@ static void check_sample(const mcd_golden* g, size_t count, size_t which) {
     CHECK_RESULT(mcd_sample(NULL, 0, 0.0f, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, NULL, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0, pose, ci.node_count, NULL), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0x8u, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0x10u, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_sample(a, 0, 0.0f, 0x80000000u, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_sample(a, 0, (float)NAN, 0, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_sample(a, 0, (float)NAN, MCD_SAMPLE_LOOP, pose, ci.node_count, scratch), MCD_ERROR_INVALID_ARGUMENT);

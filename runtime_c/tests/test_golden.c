@@ -150,6 +150,7 @@ static const asset_fact k_facts[] = {
     {"spline_09_11.mcd", 1, 1, {{"09_11", 166, 0}}},
     {"spline_library.mcd", 2, 2, {{"07_01", 317, 0}, {"02_01_head", 61, 1}}},
     {"rma_library.mcd", 2, 2, {{"07_01", 317, 0}, {"09_11", 166, 1}}},
+    {"spline_contacts_02_01.mcd", 1, 1, {{"02_01", 344, 0}}}, /* make_golden_contacts.py */
 };
 
 /* Every CMU skeleton here: 31 joints (1 ROOT + 30 JOINT) + 7 End Sites = 38 nodes. */

@@ -43,7 +43,9 @@ namespace Mocodec
         /// <summary>Wrap time into the clip instead of clamping it.</summary>
         Loop = 0x2,
         /// <summary>Nearest frame instead of the codec's curve between frames.</summary>
-        Nearest = 0x4
+        Nearest = 0x4,
+        /// <summary>Pull planted feet onto the clip's contact trajectories by IK (no-op without them).</summary>
+        Contacts = 0x8
     }
 
     /// <summary>Codec identifiers of the clip directory (<c>mcd_codec</c>).</summary>

@@ -21,6 +21,7 @@ __all__ = [
     "NodeInfo",
     "Result",
     "RuntimeResultError",
+    "SAMPLE_CONTACTS",
     "SAMPLE_LOOP",
     "SAMPLE_NEAREST",
     "SAMPLE_WORLD",
@@ -32,6 +33,7 @@ __all__ = [
 SAMPLE_WORLD = lib.MCD_SAMPLE_WORLD
 SAMPLE_LOOP = lib.MCD_SAMPLE_LOOP
 SAMPLE_NEAREST = lib.MCD_SAMPLE_NEAREST
+SAMPLE_CONTACTS = lib.MCD_SAMPLE_CONTACTS
 VALIDATE_SKIP_CHECKSUM = lib.MCD_VALIDATE_SKIP_CHECKSUM
 
 
@@ -216,15 +218,18 @@ class Asset:
         return out
 
     def sample_frames(
-        self, clip: int | str, frames: np.ndarray | None = None, world: bool = False
+        self, clip: int | str, frames: np.ndarray | None = None, world: bool = False,
+        contacts: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Rotations ``(F, N, 4)`` and translations ``(F, N, 3)`` at integer frames
-        (all frames by default), local or world, as float64 arrays."""
+        (all frames by default), local or world, as float64 arrays; ``contacts`` applies the
+        clip's contact trajectories (``SAMPLE_CONTACTS``)."""
         info = self.clips[self.clip_index(clip)]
         if frames is None:
             frames = np.arange(info.frame_count)
         times = np.asarray(frames, dtype=np.float64) / info.frame_rate
-        poses = self.sample_times(info.index, times, SAMPLE_WORLD if world else 0)
+        flags = (SAMPLE_WORLD if world else 0) | (SAMPLE_CONTACTS if contacts else 0)
+        poses = self.sample_times(info.index, times, flags)
         return poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)
 
 
