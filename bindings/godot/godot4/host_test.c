@@ -520,7 +520,7 @@ int main(int argc, char **argv) {
     static const char *animation_methods[] = {"set_data", "get_data", "get_result", "get_version", "get_clip_count",
                                               "get_clip_name", "get_clip_duration", "find_clip", "get_node_count",
                                               "get_node_name", "sample", "get_pose_rotation", "get_pose_translation"};
-    static const char *player_props[] = {"animation", "skeleton", "clip", "time", "speed", "playing", "loop"};
+    static const char *player_props[] = {"animation", "skeleton", "clip", "time", "speed", "playing", "loop", "contacts"};
     GDExtensionObjectPtr anim, player_obj;
     const class_rec *anim_class, *player_class;
     uint8_t *asset;
@@ -756,7 +756,7 @@ int main(int argc, char **argv) {
         /* expected: the local pose at 0.4 s, translations in metres */
         v[0] = vint(0);
         v[1] = vfloat(0.4);
-        v[2] = vint(2); /* the player loops by default */
+        v[2] = vint(2 | 8); /* the player loops and applies contact IK by default */
         vcall(anim, "MocodecAnimation", "sample", v, 3, &ret);
         for (n = 0; n < count; n++) {
             int64_t node = n;

@@ -277,7 +277,7 @@ typedef struct {
     gd_node_path skeleton_path;
     int64_t clip;
     double time, speed;
-    uint8_t playing, loop;
+    uint8_t playing, loop, contacts;
     /* bound state, rebuilt when a property changes or sampling fails */
     uint32_t bound;
     GDObjectInstanceID skeleton_id;
@@ -366,7 +366,7 @@ static void player_step(player *self, double delta) {
         }
     }
     r = mcd_sample(&self->anim->a.asset, (uint32_t)self->clip, (float)self->time,
-                   self->loop ? MCD_SAMPLE_LOOP : 0, self->pose, self->node_count, self->scratch);
+                   (self->loop ? MCD_SAMPLE_LOOP : 0) | (self->contacts ? MCD_SAMPLE_CONTACTS : 0), self->pose, self->node_count, self->scratch);
     if (r != MCD_OK) { /* e.g. the animation's data changed under us: rebind next frame */
         report("MocodecSkeletonPlayer", r);
         player_unbind(self);
@@ -447,6 +447,7 @@ PLAYER_FIELD(time, time, double)
 PLAYER_FIELD(speed, speed, double)
 PLAYER_FIELD(playing, playing, uint8_t)
 PLAYER_FIELD(loop, loop, uint8_t)
+PLAYER_FIELD(contacts, contacts, uint8_t)
 
 static void player_advance(void *p, const void *const *args, void *ret) {
     (void)ret;
@@ -524,6 +525,8 @@ static const method_def player_methods[] = {
     {"is_playing", player_get_playing, K_BOOL, 0, {K_VOID}, {NULL}},
     {"set_loop", player_set_loop, K_VOID, 1, {K_BOOL}, {"loop"}},
     {"is_loop", player_get_loop, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_contacts", player_set_contacts, K_VOID, 1, {K_BOOL}, {"contacts"}},
+    {"is_contacts", player_get_contacts, K_BOOL, 0, {K_VOID}, {NULL}},
     {"advance", player_advance, K_VOID, 1, {K_FLOAT}, {"delta"}},
 };
 
@@ -736,6 +739,7 @@ static GDExtensionObjectPtr player_create(void *userdata) {
     self->speed = 1.0;
     self->playing = 1;
     self->loop = 1;
+    self->contacts = 1; /* contact IK on by default: a no-op for assets without contacts */
     return attach(&name_node, &name_player, self, &self->object);
 }
 
@@ -826,6 +830,7 @@ static void initialize(void *userdata, GDExtensionInitializationLevel level) {
     register_property(&name_player, "speed", K_FLOAT, "set_speed", "get_speed");
     register_property(&name_player, "playing", K_BOOL, "set_playing", "is_playing");
     register_property(&name_player, "loop", K_BOOL, "set_loop", "is_loop");
+    register_property(&name_player, "contacts", K_BOOL, "set_contacts", "is_contacts");
 }
 
 static void deinitialize(void *userdata, GDExtensionInitializationLevel level) {

@@ -26,6 +26,8 @@ namespace Mocodec.Unity
 
         public bool playOnEnable = true;
         public bool loop = true;
+        [Tooltip("Pull feet (and hands) back onto their recorded contacts by IK, for assets encoded with --contacts; no effect on other assets.")]
+        public bool contactIK = true;
         [Tooltip("Playback rate; negative plays backwards.")]
         public float speed = 1f;
         [Tooltip("Current time in seconds.")]
@@ -89,7 +91,8 @@ namespace Mocodec.Unity
         {
             if (m_Context == null)
                 return;
-            m_Context.Sample(m_Clip, time, m_Pose, loop ? SampleFlags.Loop : SampleFlags.None);
+            SampleFlags flags = (loop ? SampleFlags.Loop : SampleFlags.None) | (contactIK ? SampleFlags.Contacts : SampleFlags.None);
+            m_Context.Sample(m_Clip, time, m_Pose, flags);
             for (int i = 0; i < m_Targets.Length; i++)
             {
                 Transform target = m_Targets[i];
