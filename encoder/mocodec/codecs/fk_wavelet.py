@@ -274,25 +274,23 @@ def prefix_bytes(payload: bytes, bands: int) -> int:
     return p.streams_offset + sum(p.band_bytes[:bands])
 
 
-def decode_payload(payload: bytes, skeleton: Skeleton,
-                   bands: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Reference decoder: local rotations (F, N, 4) and translations (F, N, 3) at every frame,
-    float32 values as the runtime computes them. ``bands`` < L + 1 decodes only the first
-    bands (progressive decoding: the finer ones are taken as zero), reading only
-    :func:`prefix_bytes` bytes of the payload."""
+def decode_channels(payload: bytes, bands: int | None = None) -> tuple[ParsedPayload, np.ndarray]:
+    """Every channel on every frame (F, C) float32, as the runtime reconstructs it at open.
+    ``bands`` < L + 1 uses only the first band streams (progressive decoding: the finer bands
+    are taken as zero) and reads only :func:`prefix_bytes` bytes of the payload."""
     p = parse(payload)
     use = p.levels + 1 if bands is None else max(1, min(bands, p.levels + 1))
     rows = band_rows(p.frames, p.levels)
-    steps_track = []
+    codes = []
     for i in range(p.nodes):
         if p.node_table[i, 0] == ROT_QUATERNION:
-            steps_track += [p.node_table[i, 2]] * 4
+            codes += [int(p.node_table[i, 2])] * 4
         if p.node_table[i, 1] == TRANS_CHANNELS:
-            steps_track += [p.node_table[i, 3]] * 3
-    track_codes = np.asarray(steps_track, dtype=np.int64)
+            codes += [int(p.node_table[i, 3])] * 3
+    track_codes = np.asarray(codes, dtype=np.int64)
+    data = payload[: prefix_bytes(payload, use)]
     deq = []
     off = p.streams_offset
-    data = payload[: prefix_bytes(payload, use)]
     for b in range(p.levels + 1):
         if b < use and p.channels:
             q = entropy_decode(data[off: off + p.band_bytes[b]], rows[b] * p.channels, 1)
@@ -301,20 +299,53 @@ def decode_payload(payload: bytes, skeleton: Skeleton,
         else:
             deq.append(np.zeros((rows[b], p.channels), dtype=np.float32))
         off += p.band_bytes[b]
-    x = inverse_f32(deq)
-    rot = np.zeros((p.frames, p.nodes, 4))
+    return p, inverse_f32(deq)
+
+
+def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray | None = None,
+                   bands: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Reference decoder: local rotations (K, N, 4) and translations (K, N, 3) at frame
+    positions ``x`` (default: every frame), computed in float32 as the runtime does
+    (channels interpolated linearly between frames, quaternions normalised)."""
+    p, ch = decode_channels(payload, bands)
+    x = np.arange(p.frames, dtype=np.float32) if x is None else np.asarray(x, dtype=np.float32)
+    i0 = np.minimum(x.astype(np.int64), p.frames - 1)
+    i1 = np.minimum(i0 + 1, p.frames - 1)
+    t = (x - i0.astype(np.float32))[:, None]
+    a, b = ch[i0], ch[i1]
+    v = a + (b - a) * t
+    rot = np.zeros((len(x), p.nodes, 4))
     rot[..., 3] = 1.0
     trans = np.broadcast_to(np.asarray(skeleton.offsets, dtype=np.float32).astype(np.float64),
-                            (p.frames, p.nodes, 3)).copy()
+                            (len(x), p.nodes, 3)).copy()
     c = 0
     for i in range(p.nodes):
         if p.node_table[i, 0] == ROT_QUATERNION:
-            rot[:, i] = _normalize_f32(x[:, c:c + 4])
+            rot[:, i] = _normalize_f32(v[:, c:c + 4])
             c += 4
         if p.node_table[i, 1] == TRANS_CHANNELS:
-            trans[:, i] = x[:, c:c + 3]
+            trans[:, i] = v[:, c:c + 3]
             c += 3
     return rot, trans
+
+
+def progressive_errors(payload: bytes, motion: Motion, cm_per_unit: float) -> list[dict[str, float]]:
+    """Error against ``motion`` of every prefix of the band streams: for k = 1 ... L + 1 bands,
+    the bytes read and the max / p99 / mean world position error (cm) over every frame and
+    node, decoded with :func:`decode_payload`."""
+    from ..kinematics import forward_kinematics
+
+    sk = motion.skeleton
+    _, pos_o = forward_kinematics(sk, motion.rotations, motion.translations)
+    p = parse(payload)
+    out = []
+    for k in range(1, p.levels + 2):
+        rot, trans = decode_payload(payload, sk, bands=k)
+        _, pos = forward_kinematics(sk, rot, trans)
+        err = np.linalg.norm(pos - pos_o, axis=-1) * cm_per_unit
+        out.append({"bands": k, "bytes": prefix_bytes(payload, k), "max_cm": float(err.max()),
+                    "p99_cm": float(np.percentile(err, 99)), "mean_cm": float(err.mean())})
+    return out
 
 
 # ------------------------------------------------------------------------ encoder
@@ -339,6 +370,10 @@ class FkWaveletSettings:
         Rounds of check-through-the-runtime and step refinement before giving up.
     shell_cm : float, default 3.0
         Virtual vertices this far from a joint fix its twist in the compensation fit.
+    coarsen, coarsen_tries, coarsen_repairs : int, default 2, 6, 4
+        Once the clip passes, every track's step code is raised by ``coarsen`` (a factor
+        2^(coarsen/4)) up to ``coarsen_tries`` times, each try refined at most
+        ``coarsen_repairs`` rounds; the smallest passing payload is kept.
     """
 
     tolerance: Tolerance
@@ -348,6 +383,9 @@ class FkWaveletSettings:
     compensate: bool = True
     max_repairs: int = 40
     shell_cm: float = 3.0
+    coarsen: int = 2
+    coarsen_tries: int = 6
+    coarsen_repairs: int = 4
 
 
 @dataclass
@@ -444,19 +482,45 @@ class _Encoder:
         return True
 
 
-def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
-                check: CheckFn) -> FkWaveletClipResult:
-    """Encode one clip so that every node's error measured by ``check`` (through the C
-    runtime) is within the tolerance on every frame."""
-    started = time.perf_counter()
-    enc = _Encoder(motion, cm_per_unit, settings)
-    for repair in range(settings.max_repairs + 1):
+def _meet(enc: _Encoder, check: CheckFn, rounds: int) -> tuple[bytes, np.ndarray, int] | None:
+    """Code, check through the runtime and refine until every node is within tolerance;
+    None when ``rounds`` refinements do not get there."""
+    for repair in range(rounds + 1):
         payload = enc.code_pass()
         errors = check(payload)
         if np.all(errors <= enc.tol_units[None, :]):
-            return FkWaveletClipResult(payload, errors, repair, enc.levels, len(enc.tracks),
-                                       time.perf_counter() - started)
-        enc.refine(errors)
-    worst = float(np.max(errors / enc.tol_units[None, :]))
-    raise ToleranceNotMet(f"{motion.name}: still {worst:.3f}x over the tolerance after "
-                          f"{settings.max_repairs} refinements")
+            return payload, errors, repair
+        if repair < rounds:
+            enc.refine(errors)
+    enc.last_errors = errors
+    return None
+
+
+def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
+                check: CheckFn) -> FkWaveletClipResult:
+    """Encode one clip so that every node's error measured by ``check`` (through the C
+    runtime) is within the tolerance on every frame.
+
+    From the initial per-track steps the encoder refines until the clip passes, then tries
+    coarser steps for every track at once (``settings.coarsen`` codes, one quarter octave each,
+    per try), refining each try, and keeps the smallest payload that passes."""
+    started = time.perf_counter()
+    enc = _Encoder(motion, cm_per_unit, settings)
+    found = _meet(enc, check, settings.max_repairs)
+    if found is None:
+        worst = float(np.max(enc.last_errors / enc.tol_units[None, :]))
+        raise ToleranceNotMet(f"{motion.name}: still {worst:.3f}x over the tolerance after "
+                              f"{settings.max_repairs} refinements")
+    best, best_errors, repairs = found
+    best_codes = {k: t.code for k, t in enc.tracks.items()}
+    for _ in range(settings.coarsen_tries):
+        for k, t in enc.tracks.items():
+            t.code = best_codes[k] + settings.coarsen
+        found = _meet(enc, check, settings.coarsen_repairs)
+        if found is None or len(found[0]) >= len(best):
+            break
+        best, best_errors, r = found
+        repairs += r + 1
+        best_codes = {k: t.code for k, t in enc.tracks.items()}
+    return FkWaveletClipResult(best, best_errors, repairs, enc.levels, len(enc.tracks),
+                               time.perf_counter() - started)
