@@ -150,7 +150,7 @@ def test_damaged_payloads_are_rejected(clip_07_01):
     assert _opens(m, good)
     p = W.parse(good)
     codes_at = W.HEADER + 4 * p.nodes
-    sizes_at = codes_at + -(-(p.levels + 1) // 4) * 4
+    sizes_at = codes_at + -(-2 * (p.levels + 1) // 4) * 4
 
     def edit(offset: int, fmt: str, value) -> bytes:
         b = bytearray(good)
@@ -163,7 +163,9 @@ def test_damaged_payloads_are_rejected(clip_07_01):
         "channels": edit(8, "<I", p.channels - 1),
         "levels too many": edit(12, "<B", 12),
         "levels fewer": edit(12, "<B", p.levels - 1),
-        "reserved": edit(13, "<B", 1),
+        "reserved": edit(14, "<B", 1),
+        "roi gain past the bound": edit(13, "<B", 31),
+        "roi shift past the bound": edit(codes_at + p.levels + 1, "<B", 31),
         "rotation mode": edit(W.HEADER, "<B", 1),
         "step code past the bound": edit(W.HEADER + 2, "<B", 255),
         "band code past the bound": edit(codes_at, "<B", 255),
@@ -195,3 +197,42 @@ def test_random_corruption_never_crashes_and_stays_finite(clip_07_01):
         poses = asset.sample_times(0, np.linspace(0, 2.0, 7).astype(np.float32))
         assert np.all(np.isfinite(poses))
     assert accepted < 150
+
+
+# ------------------------------------------------------------------------ ROI (max-shift)
+FEET = ("LeftFoot", "RightFoot", "LeftToeBase", "RightToeBase")
+
+
+def test_roi_holds_the_tight_tolerance_on_constraint_frames_only(clip_07_01):
+    m, plain = clip_07_01
+    roi = _encode_clip(m, 1.0, roi_frames=((150, 180),), roi_nodes=FEET, roi_tolerance_cm=0.1)
+    p = W.parse(roi.payload)
+    assert p.roi_gain >= 1 and p.roi_shifts.max() >= 1 and p.roi_shifts[0] == 0
+    # Measured through the runtime from the finished asset, not the encoder's own check.
+    asset = Asset(_single_clip_asset(m, CM, "fk-wavelet", roi.payload))
+    err = _world_error_cm(asset, m)
+    feet = [m.skeleton.index(n) for n in FEET]
+    assert err[150:181][:, feet].max() <= 0.1
+    assert err.max() <= 1.0
+    assert err[:140][:, feet].max() > 0.2  # outside the region only the clip tolerance holds
+    # Cheaper than holding the feet to 0.1 cm on every frame.
+    tight = _encode_clip(m, 1.0, roi_frames=((0, m.frame_count - 1),), roi_nodes=FEET,
+                         roi_tolerance_cm=0.1)
+    assert len(plain.payload) < len(roi.payload) < len(tight.payload)
+
+
+def test_roi_values_decode_the_same_in_c_and_python(clip_07_01):
+    m, _ = clip_07_01
+    roi = _encode_clip(m, 1.0, roi_frames=((40, 60), (200, 230)), roi_tolerance_cm=0.2)
+    asset = Asset(_single_clip_asset(m, CM, "fk-wavelet", roi.payload))
+    rot_c, trans_c = asset.sample_frames(0, world=False)
+    rot_py, trans_py = W.decode_payload(roi.payload, m.skeleton)
+    assert np.abs(rot_c - rot_py).max() <= 1e-5
+    assert np.abs(trans_c - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
+    # The max-shift rule matters: read every value as background and the poses move.
+    p = W.parse(roi.payload)
+    b = bytearray(roi.payload)
+    at = W.HEADER + 4 * p.nodes + p.levels + 1
+    b[at: at + p.levels + 1] = bytes(p.levels + 1)
+    wrong = W.decode_payload(bytes(b), m.skeleton)
+    assert np.abs(wrong[0] - rot_py).max() > 1e-3

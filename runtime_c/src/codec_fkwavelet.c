@@ -21,6 +21,7 @@
 #define NODE_ENTRY 4u
 #define MAX_LEVELS 15u
 #define MAX_CODE_SUM 296u         /* step = 2^(e/4 - 64) <= 2^10 */
+#define MAX_ROI 30u               /* ROI gain and per-band shifts */
 #define MAX_VALUES (1u << 26)     /* frames x channels of one payload */
 #define MAX_RESIDENT (1u << 31)   /* the whole section's resident block */
 #define CLAMP 1e7f
@@ -60,8 +61,8 @@ static uint32_t band_rows(uint32_t frames, uint32_t levels, uint32_t band) {
 }
 
 typedef struct layout {
-    uint32_t frames, nodes, channels, levels, size;
-    const uint8_t *node_table, *band_codes, *band_bytes, *streams;
+    uint32_t frames, nodes, channels, levels, roi_gain, size;
+    const uint8_t *node_table, *band_codes, *roi_shifts, *band_bytes, *streams;
 } layout;
 
 /* Parse the sizes of the payload at p (avail bytes readable). Returns 0 unless the header
@@ -74,12 +75,14 @@ static int read_layout(const uint8_t* p, size_t avail, layout* L) {
     L->nodes = mcd_rd_u32(p + 4);
     L->channels = mcd_rd_u32(p + 8);
     L->levels = p[12];
+    L->roi_gain = p[13];
     if (L->frames < 1u || L->nodes < 1u || L->nodes > MCD_MAX_NODES || L->levels > MAX_LEVELS) return 0;
     if (L->channels > 7u * L->nodes) return 0;
     off = HEADER + (size_t)NODE_ENTRY * L->nodes;
     L->node_table = p + HEADER;
     L->band_codes = p + off;
-    off += align4z(L->levels + 1u);
+    L->roi_shifts = p + off + L->levels + 1u;
+    off += align4z(2u * (L->levels + 1u));
     L->band_bytes = p + off;
     off += 4u * (size_t)(L->levels + 1u);
     if (off > avail) return 0;
@@ -99,7 +102,7 @@ static int read_layout(const uint8_t* p, size_t avail, layout* L) {
 static int check_payload(const layout* L, const uint8_t* p) {
     uint32_t i, b, channels = 0, max_track = 0, max_band = 0;
     size_t end;
-    if (p[13] || p[14] || p[15]) return 0;
+    if (L->roi_gain > MAX_ROI || p[14] || p[15]) return 0;
     if ((uint64_t)L->frames * L->channels > MAX_VALUES) return 0;
     /* Every level splits a signal of at least two samples. */
     if (L->levels > 0u && level_length(L->frames, L->levels - 1u) < 2u) return 0;
@@ -121,7 +124,9 @@ static int check_payload(const layout* L, const uint8_t* p) {
     if (channels != L->channels) return 0;
     for (b = 0; b <= L->levels; ++b)
         if (L->band_codes[b] > max_band) max_band = L->band_codes[b];
-    for (b = L->levels + 1u; b < align4z(L->levels + 1u); ++b)
+    for (b = 0; b <= L->levels; ++b)
+        if (L->roi_shifts[b] > MAX_ROI) return 0;
+    for (b = 2u * (L->levels + 1u); b < align4z(2u * (L->levels + 1u)); ++b)
         if (L->band_codes[b] != 0) return 0;
     if (max_track + max_band > MAX_CODE_SUM) return 0;
     /* A stream of no values is empty; any other holds at least 4 bytes (checked on decode). */
@@ -211,11 +216,15 @@ static void channel_steps(const layout* L, uint32_t band_code, float* steps) {
     }
 }
 
-/* Decode band b into rows (count rows x C) as floats: value x step. The decoder writes int32
- * in place; each is read back and replaced by its float through memcpy. */
+/* Decode band b into rows (count rows x C) as floats: value x step, or, for a value at or
+ * above the band's ROI threshold 2^shift (max-shift ROI coding), value x step x 2^-(shift +
+ * roi_gain). The decoder writes int32 in place; each is read back and replaced by its float
+ * through memcpy. */
 static mcd_result decode_band(const layout* L, uint32_t b, const uint8_t* stream, uint32_t bytes,
                               uint32_t rows, float* out, float* steps, int clamp) {
-    uint32_t r, c;
+    uint32_t r, c, shift = L->roi_shifts[b];
+    uint32_t threshold = shift ? (uint32_t)1u << shift : 0xFFFFFFFFu;
+    int scale = -(int)(shift + L->roi_gain);
     size_t n = (size_t)rows * L->channels;
     int32_t* ints = (int32_t*)(void*)out;
     mcd_result res;
@@ -227,9 +236,11 @@ static mcd_result decode_band(const layout* L, uint32_t b, const uint8_t* stream
         for (c = 0; c < L->channels; ++c) {
             size_t at = (size_t)r * L->channels + c;
             int32_t q;
+            uint32_t mag;
             float f;
             memcpy(&q, out + at, sizeof q);
-            f = (float)q * steps[c];
+            mag = q < 0 ? (uint32_t)(-(q + 1)) + 1u : (uint32_t)q; /* |q| <= 2^30 - 1 */
+            f = (float)q * (mag >= threshold ? ldexpf(steps[c], scale) : steps[c]);
             if (clamp) f = clampf(f);
             memcpy(out + at, &f, sizeof f);
         }

@@ -34,7 +34,7 @@ import numpy as np
 from .. import rotations as R
 from ..entropy import MAX_ABS, entropy_decode, entropy_encode
 from ..motion import Motion, Skeleton
-from ..tolerance import Tolerance, initial_budgets
+from ..tolerance import Tolerance, ancestors_matrix, effector_nodes, initial_budgets
 from .spline import SplineSettings, _ClipFitter
 
 ROT_IDENTITY, ROT_QUATERNION = 0, 2
@@ -44,6 +44,7 @@ MAX_LEVELS = 15
 MAX_CODE_SUM = 296
 CODE_BIAS = 64  # step = 2^(code_sum / 4 - CODE_BIAS)
 BAND_BIAS = 64  # band codes are 64 + round(4 log2(1 / synthesis gain))
+MAX_ROI = 30    # ROI gain and per-band max-shift
 CLAMP = np.float32(1e7)
 
 # CDF 9/7 lifting constants, as the float32 values the C decoder uses.
@@ -168,27 +169,42 @@ class _Track:
     is_rotation: bool
     code: int                       # the track's step code
     values: np.ndarray | None = None  # (F, 4|3) the signal coded last
-    q: list[np.ndarray] = field(default_factory=list)  # quantized bands
+    q: list[np.ndarray] = field(default_factory=list)  # quantized bands (background step)
+    q_roi: list[np.ndarray] = field(default_factory=list)  # ROI values (finer step), 0 elsewhere
+    roi: list[np.ndarray] = field(default_factory=list)    # where q_roi replaces q
 
     @property
     def width(self) -> int:
         return 4 if self.is_rotation else 3
 
 
-def _quantize(track: _Track, values: np.ndarray, levels: int, bcodes: np.ndarray) -> np.ndarray:
-    """Quantize ``values`` for ``track``; returns what the runtime decodes (F, w) float32."""
+def _quantize(track: _Track, values: np.ndarray, levels: int, bcodes: np.ndarray,
+              roi: list[np.ndarray] | None = None, gain: int = 0) -> np.ndarray:
+    """Quantize ``values`` for ``track``; returns what the runtime decodes (F, w) float32.
+
+    ``roi`` (per band, bool rows) marks the coefficients of constraint frames: they are
+    quantized with the step / 2^gain and later written max-shifted (:func:`serialize`)."""
     bands = forward(values, levels)
-    q, deq = [], []
+    q, qr, masks, deq = [], [], [], []
     for b, coef in enumerate(bands):
         step = step_value(track.code + int(bcodes[b]))
         qi = np.rint(coef / float(step))
-        if qi.size and np.abs(qi).max() > MAX_ABS:
-            raise ToleranceNotMet(f"node {track.node}: step too small for the entropy coder")
-        qi = qi.astype(np.int64)
-        q.append(qi)
-        deq.append(qi.astype(np.float32) * step)
+        mask = np.zeros(coef.shape, dtype=bool)
+        qf = np.zeros(coef.shape)
+        if roi is not None and gain > 0:
+            mask = np.broadcast_to(roi[b][:, None], coef.shape).copy()
+            qf = np.where(mask, np.rint(coef * 2.0 ** gain / float(step)), 0.0)
+            mask &= qf != 0  # an ROI zero is a background zero
+        for arr in (qi, qf):
+            if arr.size and np.abs(arr).max() > MAX_ABS:
+                raise ToleranceNotMet(f"node {track.node}: step too small for the entropy coder")
+        q.append(qi.astype(np.int64))
+        qr.append(qf.astype(np.int64))
+        masks.append(mask)
+        fine = np.ldexp(step, -gain).astype(np.float32)
+        deq.append(np.where(mask, qf.astype(np.float32) * fine, qi.astype(np.float32) * step))
     track.values = values
-    track.q = q
+    track.q, track.q_roi, track.roi = q, qr, masks
     return inverse_f32(deq)
 
 
@@ -207,11 +223,37 @@ def _normalize_f32(q: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------ payload
+def roi_shifts(levels: int, tracks: list[_Track]) -> np.ndarray:
+    """Max-shift per band: the bit length of the largest background value (so every
+    background value is below 2^shift), 0 for a band without ROI values."""
+    shifts = np.zeros(levels + 1, dtype=np.int64)
+    for b in range(levels + 1):
+        if not any(t.roi and t.roi[b].any() for t in tracks):
+            continue
+        top = max((int(np.abs(np.where(t.roi[b], 0, t.q[b])).max(initial=0)) if t.roi else
+                   int(np.abs(t.q[b]).max(initial=0))) for t in tracks)
+        shifts[b] = max(1, top.bit_length())
+    if shifts.max() > MAX_ROI:
+        raise ToleranceNotMet("ROI shift past the format's bound")
+    return shifts
+
+
+def _coded(t: _Track, b: int, shift: int) -> np.ndarray:
+    """Band b of a track as written: background values, ROI values scaled up by 2^shift."""
+    if not t.roi or not t.roi[b].any():
+        return t.q[b]
+    out = np.where(t.roi[b], t.q_roi[b] << shift, t.q[b])
+    if np.abs(out).max() > MAX_ABS:
+        raise ToleranceNotMet(f"node {t.node}: max-shifted ROI values exceed the entropy coder's range")
+    return out
+
+
 def serialize(skeleton: Skeleton, frames: int, levels: int, bcodes: np.ndarray,
-              tracks: dict[tuple[int, bool], _Track]) -> bytes:
+              tracks: dict[tuple[int, bool], _Track], gain: int = 0) -> bytes:
     """The ``FKWV`` payload (docs/FORMAT.md)."""
     n = skeleton.node_count
     nodes = []
+    shifts = roi_shifts(levels, list(tracks.values())) if gain else np.zeros(levels + 1, dtype=np.int64)
     columns: list[list[np.ndarray]] = [[] for _ in range(levels + 1)]
     channels = 0
     for i in range(n):
@@ -223,7 +265,7 @@ def serialize(skeleton: Skeleton, frames: int, levels: int, bcodes: np.ndarray,
             if t is not None:
                 channels += t.width
                 for b in range(levels + 1):
-                    columns[b].append(t.q[b])
+                    columns[b].append(_coded(t, b, int(shifts[b])))
     streams = []
     rows = band_rows(frames, levels)
     for b in range(levels + 1):
@@ -233,10 +275,10 @@ def serialize(skeleton: Skeleton, frames: int, levels: int, bcodes: np.ndarray,
             streams.append(entropy_encode(block.reshape(-1), 1))
         else:
             streams.append(b"")
-    codes = bytes(int(c) for c in bcodes)
+    codes = bytes(int(c) for c in bcodes) + bytes(int(x) for x in shifts)
     codes += bytes((-len(codes)) % 4)
     body = b"".join([
-        struct.pack("<IIIB3x", frames, n, channels, levels),
+        struct.pack("<IIIBB2x", frames, n, channels, levels, gain),
         b"".join(nodes),
         codes,
         struct.pack(f"<{levels + 1}I", *[len(s) for s in streams]),
@@ -251,21 +293,24 @@ class ParsedPayload:
     nodes: int
     channels: int
     levels: int
+    roi_gain: int
     node_table: np.ndarray      # (N, 4) uint8
     band_codes: np.ndarray      # (L+1,)
+    roi_shifts: np.ndarray      # (L+1,)
     band_bytes: list[int]
     streams_offset: int         # where the first stream starts
 
 
 def parse(payload: bytes) -> ParsedPayload:
-    frames, nodes, channels, levels = struct.unpack_from("<IIIB", payload, 0)
+    frames, nodes, channels, levels, gain = struct.unpack_from("<IIIBB", payload, 0)
     nt = np.frombuffer(payload, dtype=np.uint8, count=4 * nodes, offset=HEADER).reshape(nodes, 4)
     off = HEADER + 4 * nodes
-    codes = np.frombuffer(payload, dtype=np.uint8, count=levels + 1, offset=off).astype(np.int64)
-    off += -(-(levels + 1) // 4) * 4
+    codes = np.frombuffer(payload, dtype=np.uint8, count=2 * (levels + 1), offset=off).astype(np.int64)
+    off += -(-2 * (levels + 1) // 4) * 4
     sizes = list(struct.unpack_from(f"<{levels + 1}I", payload, off))
     off += 4 * (levels + 1)
-    return ParsedPayload(frames, nodes, channels, levels, nt.copy(), codes, sizes, off)
+    return ParsedPayload(frames, nodes, channels, levels, gain, nt.copy(), codes[:levels + 1],
+                         codes[levels + 1:], sizes, off)
 
 
 def prefix_bytes(payload: bytes, bands: int) -> int:
@@ -295,7 +340,12 @@ def decode_channels(payload: bytes, bands: int | None = None) -> tuple[ParsedPay
         if b < use and p.channels:
             q = entropy_decode(data[off: off + p.band_bytes[b]], rows[b] * p.channels, 1)
             q = q.reshape(rows[b], p.channels)
-            deq.append(q.astype(np.float32) * step_value(track_codes + p.band_codes[b])[None, :])
+            step = step_value(track_codes + p.band_codes[b])[None, :]
+            shift = int(p.roi_shifts[b])
+            if shift:
+                fine = np.ldexp(step, -(shift + p.roi_gain)).astype(np.float32)
+                step = np.where(np.abs(q.astype(np.int64)) >= (1 << shift), fine, step)
+            deq.append(q.astype(np.float32) * step)
         else:
             deq.append(np.zeros((rows[b], p.channels), dtype=np.float32))
         off += p.band_bytes[b]
@@ -374,6 +424,18 @@ class FkWaveletSettings:
         Once the clip passes, every track's step code is raised by ``coarsen`` (a factor
         2^(coarsen/4)) up to ``coarsen_tries`` times, each try refined at most
         ``coarsen_repairs`` rounds; the smallest passing payload is kept.
+    roi_frames : tuple of (first, last) frame ranges, default ()
+        Constraint frames (§4.2): region-of-interest coding by the max-shift method. The
+        detail coefficients whose synthesis reaches these frames, on the tracks of the
+        constraint nodes and their ancestors, are quantized 2^gain times finer and written
+        scaled up past every other value of their band, so the decoder tells them apart by
+        magnitude alone; the coarsest band is made 2^gain times finer as a whole.
+    roi_nodes : tuple of str, default ()
+        Constraint joints (default: the end effectors, ``tolerance.effector_nodes``).
+    roi_tolerance_cm : float or None
+        The tolerance held on constraint frames at constraint joints (default: the clip's).
+    roi_gain, roi_max_gain : int, default 1, 14
+        First ROI gain (octaves) and the most the refinement may raise it to.
     """
 
     tolerance: Tolerance
@@ -386,6 +448,11 @@ class FkWaveletSettings:
     coarsen: int = 2
     coarsen_tries: int = 6
     coarsen_repairs: int = 4
+    roi_frames: tuple = ()
+    roi_nodes: tuple = ()
+    roi_tolerance_cm: float | None = None
+    roi_gain: int = 1
+    roi_max_gain: int = 14
 
 
 @dataclass
@@ -413,6 +480,7 @@ class _Encoder:
         self.levels = max_levels(self.frames, min(settings.max_levels, MAX_LEVELS))
         self.bcodes = band_codes(self.frames, self.levels, settings.band_tilt)
         budgets = initial_budgets(self.fitter.reach, self.tol_units, settings.budget_scale)
+        self._setup_roi(cm_per_unit)
         self.tracks: dict[tuple[int, bool], _Track] = {}
         self.rows: dict[tuple[int, bool], int] = {}
         for k, (i, rot) in enumerate(zip(self.fitter.track_nodes, self.fitter.track_is_rot)):
@@ -427,6 +495,33 @@ class _Encoder:
             self.tracks[(i, rot)] = _Track(i, rot, code)
             self.rows[(i, rot)] = k
 
+    def _setup_roi(self, cm_per_unit: float) -> None:
+        """Constraint cells (frame, node), their tolerance, the ROI tracks and band masks."""
+        s, sk, f = self.settings, self.motion.skeleton, self.frames
+        self.tol_fn = np.broadcast_to(self.tol_units, (f, sk.node_count)).copy()
+        self.roi_cells = np.zeros((f, sk.node_count), dtype=bool)
+        self.gain, self.roi_bands, self.roi_nodes_of = 0, None, np.zeros(sk.node_count, dtype=bool)
+        if not s.roi_frames:
+            return
+        frames = np.zeros(f, dtype=bool)
+        for first, last in s.roi_frames:
+            frames[max(0, int(first)): min(f, int(last) + 1)] = True
+        nodes = ([sk.index(n) for n in s.roi_nodes] if s.roi_nodes
+                 else list(np.flatnonzero(effector_nodes(sk))))
+        self.roi_cells[np.ix_(frames, nodes)] = True
+        if s.roi_tolerance_cm is not None:
+            self.tol_fn[self.roi_cells] = np.minimum(self.tol_fn[self.roi_cells], s.roi_tolerance_cm / cm_per_unit)
+        self.roi_nodes_of = ancestors_matrix(sk)[:, nodes].any(axis=1)  # tracks of these nodes
+        self.gain = int(s.roi_gain)
+        self.roi_bands = roi_band_masks(f, self.levels, frames)
+
+    def _band_codes(self) -> np.ndarray:
+        """Band codes in use: with ROI the coarsest band is 2^gain times finer as a whole."""
+        codes = self.bcodes.copy()
+        if self.gain:
+            codes[0] = max(0, codes[0] - 4 * self.gain)
+        return codes
+
     def _clamp_codes(self) -> None:
         top = MAX_CODE_SUM - int(self.bcodes.max())
         for t in self.tracks.values():
@@ -436,6 +531,7 @@ class _Encoder:
         """Quantize every track parents first (each rotation re-solved against the decoded
         parent when compensating) and return the payload."""
         self._clamp_codes()
+        bcodes = self._band_codes()
         sk = self.motion.skeleton
         n = sk.node_count
         rot_d = np.empty((self.frames, n, 4))
@@ -444,7 +540,8 @@ class _Encoder:
             p = sk.parents[i]
             t = self.tracks.get((i, False))
             if t is not None:
-                local_t = _quantize(t, self.motion.translations[:, i], self.levels, self.bcodes).astype(np.float64)
+                local_t = _quantize(t, self.motion.translations[:, i], self.levels, bcodes,
+                                    *self._roi_for(i)).astype(np.float64)
             else:
                 local_t = np.broadcast_to(np.asarray(sk.offsets[i], dtype=np.float32).astype(np.float64), (self.frames, 3))
             pos_d[:, i] = local_t if p < 0 else pos_d[:, p] + R.quat_rotate(rot_d[:, p], local_t)
@@ -455,19 +552,32 @@ class _Encoder:
                 else:
                     target = self.motion.rotations[:, i]
                 target = R.quat_make_continuous(target)
-                local_q = _normalize_f32(_quantize(t, target, self.levels, self.bcodes)).astype(np.float64)
+                local_q = _normalize_f32(_quantize(t, target, self.levels, bcodes,
+                                                   *self._roi_for(i))).astype(np.float64)
             else:
                 local_q = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (self.frames, 4))
             rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
-        return serialize(sk, self.frames, self.levels, self.bcodes, self.tracks)
+        return serialize(sk, self.frames, self.levels, bcodes, self.tracks, self.gain)
+
+    def _roi_for(self, node: int) -> tuple[list[np.ndarray] | None, int]:
+        if self.roi_bands is None or not self.roi_nodes_of[node]:
+            return None, 0
+        return self.roi_bands, self.gain
 
     def refine(self, errors: np.ndarray) -> bool:
-        """Lower the step codes of tracks that move failing nodes: by the code distance of the
-        worst ratio on the failing node the track is nearest to, by one on the others."""
-        ratio = np.max(errors / self.tol_units[None, :], axis=0)  # (N,)
-        failing = ratio > 1.0
-        if not failing.any():
+        """Where the check fails: raise the ROI gain for failing constraint cells (until its
+        cap); lower the step codes of tracks that move other failing nodes — by the code
+        distance of the worst ratio on the failing nodes the track moves most, else by one."""
+        over = errors > self.tol_fn
+        if not over.any():
             return False
+        background = over
+        if self.gain and (over & self.roi_cells).any():
+            if self.gain < min(self.settings.roi_max_gain, MAX_ROI):
+                self.gain += 1
+                background = over & ~self.roi_cells
+        ratio = np.max(np.where(background, errors / self.tol_fn, 0.0), axis=0)  # (N,)
+        failing = ratio > 1.0
         reach = self.fitter.reach
         for key, t in self.tracks.items():
             k = self.rows[key]
@@ -482,13 +592,31 @@ class _Encoder:
         return True
 
 
+def roi_band_masks(frames: int, levels: int, roi_frames: np.ndarray) -> list[np.ndarray]:
+    """Per band, the coefficients whose synthesis reaches a constraint frame. A level-l
+    coefficient sits at frame k 2^l (approximation) or (2k + 1) 2^(l-1) (detail) and its
+    synthesis spans less than 4 · 2^l frames either side (7- and 9-tap filters at every level).
+    The coarsest band is never marked (it is made finer as a whole)."""
+    hits = np.concatenate(([0], np.cumsum(roi_frames.astype(np.int64))))
+    rows = band_rows(frames, levels)
+    out = [np.zeros(rows[0], dtype=bool)]
+    for b in range(1, levels + 1):
+        l = levels + 1 - b
+        centre = (2 * np.arange(rows[b]) + 1) << (l - 1)
+        r = 4 << l
+        lo = np.clip(centre - r, 0, frames)
+        hi = np.clip(centre + r + 1, 0, frames)
+        out.append(hits[hi] - hits[lo] > 0)
+    return out
+
+
 def _meet(enc: _Encoder, check: CheckFn, rounds: int) -> tuple[bytes, np.ndarray, int] | None:
     """Code, check through the runtime and refine until every node is within tolerance;
     None when ``rounds`` refinements do not get there."""
     for repair in range(rounds + 1):
         payload = enc.code_pass()
         errors = check(payload)
-        if np.all(errors <= enc.tol_units[None, :]):
+        if np.all(errors <= enc.tol_fn):
             return payload, errors, repair
         if repair < rounds:
             enc.refine(errors)
@@ -508,7 +636,7 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
     enc = _Encoder(motion, cm_per_unit, settings)
     found = _meet(enc, check, settings.max_repairs)
     if found is None:
-        worst = float(np.max(enc.last_errors / enc.tol_units[None, :]))
+        worst = float(np.max(enc.last_errors / enc.tol_fn))
         raise ToleranceNotMet(f"{motion.name}: still {worst:.3f}x over the tolerance after "
                               f"{settings.max_repairs} refinements")
     best, best_errors, repairs = found
