@@ -11,7 +11,9 @@ Writes bench/results/fk_wavelet.md and .json:
 3. progressive decoding: error of every prefix of the band streams of each clip (1 cm);
 4. end effectors vs inner joints at equal size: the tolerance-driven fk-wavelet payload against
    the same wavelet coder without FK compensation (§4.3), its step codes shifted uniformly
-   until its payload is as large; error along the left arm and left leg chains.
+   until its payload is as large; error along the left arm and left leg chains;
+5. ROI coding (max-shift, §4.2): feet held to 0.1 cm on a 31-frame window at 1 cm elsewhere,
+   against no ROI and against the feet held to 0.1 cm on every frame.
 """
 from __future__ import annotations
 
@@ -75,6 +77,33 @@ def _equal_size_plain(m, target_bytes: int):
     return at(hi)
 
 
+FEET = ("LeftFoot", "RightFoot", "LeftToeBase", "RightToeBase")
+
+
+def _roi_rows(m, check, plain_payload: bytes) -> list[dict]:
+    """Sizes and errors (through the runtime) with and without the feet ROI."""
+    mid = m.frame_count // 2
+    window = (mid - 15, mid + 15)
+    feet = [m.skeleton.index(n) for n in FEET]
+    rows = []
+    runs = [("1 cm, no ROI", None),
+            ("1 cm + feet 0.1 cm on frames %d-%d (ROI)" % window, (window,)),
+            ("1 cm + feet 0.1 cm on every frame", ((0, m.frame_count - 1),))]
+    for name, frames in runs:
+        if frames is None:
+            payload = plain_payload
+        else:
+            s = W.FkWaveletSettings(Tolerance(1.0), roi_frames=frames, roi_nodes=FEET, roi_tolerance_cm=0.1)
+            payload = W.encode_clip(m, CM, s, lambda p: check(0, p)).payload
+        err = check(0, payload) * CM
+        p = W.parse(payload)
+        rows.append({"run": name, "bytes": len(payload), "roi_gain": p.roi_gain,
+                     "feet_in_window_max_cm": float(err[window[0]:window[1] + 1][:, feet].max()),
+                     "feet_elsewhere_max_cm": float(np.delete(err[:, feet], np.s_[window[0]:window[1] + 1], axis=0).max()),
+                     "all_max_cm": float(err.max())})
+    return rows
+
+
 def _chain_errors(m, payload: bytes) -> tuple[np.ndarray, np.ndarray]:
     """(F, N) world error (cm) of the Python reference decode, and the effector mask."""
     sk = m.skeleton
@@ -93,7 +122,7 @@ def main() -> int:
     args = ap.parse_args()
     motions = [read_bvh(DEV / f"{c}.bvh") for c in args.clips]
     units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
-    out: dict = {"clips": args.clips, "tolerances": {}, "progressive": {}, "chains": {}}
+    out: dict = {"clips": args.clips, "tolerances": {}, "progressive": {}, "chains": {}, "roi": {}}
     tmp = Path(tempfile.mkdtemp(prefix="fkw_bench_"))
     exe = build_speed_tool(tmp)
     fk_payloads = {}
@@ -127,6 +156,7 @@ def main() -> int:
                               for j in joints}
             chains[name] = row
         out["chains"][m.name] = chains
+        out["roi"][m.name] = _roi_rows(m, check, r.payload)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(out, indent=1))
     args.out.with_suffix(".md").write_text(report(out))
@@ -193,6 +223,16 @@ def report(out: dict) -> str:
                 lines.append(f"| {chain}: {j} | " + " | ".join(
                     f"{chains[n][chain][j][0]:.3f} / {chains[n][chain][j][1]:.3f}" for n in names) + " |")
         lines.append("")
+    lines += ["## ROI coding (max-shift)", "",
+              "Constraint joints LeftFoot, RightFoot, LeftToeBase, RightToeBase; constraint frames "
+              "the 31 around the middle of the clip. Errors through the C runtime.", "",
+              "| clip | run | bytes | ROI gain | feet max cm in window | feet max cm elsewhere | max cm |",
+              "|---|---|---|---|---|---|---|"]
+    for clip, rows in out["roi"].items():
+        for r in rows:
+            lines.append(f"| {clip} | {r['run']} | {r['bytes']:,} | {r['roi_gain']} | "
+                         f"{r['feet_in_window_max_cm']:.3f} | {r['feet_elsewhere_max_cm']:.3f} | {r['all_max_cm']:.3f} |")
+    lines.append("")
     return "\n".join(lines)
 
 
