@@ -119,7 +119,11 @@ def main() -> int:
     ap.add_argument("--tolerances", nargs="+", type=float, default=[1.0, 3.0])
     ap.add_argument("--runs", type=int, default=9)
     ap.add_argument("--out", type=Path, default=HERE / "results" / "fk_wavelet")
+    ap.add_argument("--report-only", action="store_true", help="rewrite the .md from the saved .json")
     args = ap.parse_args()
+    if args.report_only:
+        args.out.with_suffix(".md").write_text(report(json.loads(args.out.with_suffix(".json").read_text())))
+        return 0
     motions = [read_bvh(DEV / f"{c}.bvh") for c in args.clips]
     units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
     out: dict = {"clips": args.clips, "tolerances": {}, "progressive": {}, "chains": {}, "roi": {}}
@@ -169,7 +173,12 @@ def report(out: dict) -> str:
     lines = [f"# `fk-wavelet` vs `spline` on CMU dev clips {', '.join(clips)}", "",
              "Measured by `bench/bench_fk_wavelet.py` (errors through the C runtime, every frame and "
              "node; 1 unit = 5.6444 cm). Bytes are clip payloads; the asset adds the skeleton, clip "
-             "table and META.", ""]
+             "table and META.", "",
+             "Notes: decode µs come from `bench/sample_speed.c` (median of runs, one thread) on a "
+             "2-core machine shared with other jobs, so they move between runs (spline's local "
+             "sequential figure read 0.83 µs in one run and 3.97 µs in the next); compare within "
+             "one table only. fk-wavelet's resident bytes are every channel of every clip as float32 "
+             "(4 × frames × channels) plus a small directory: about 36 times the asset here.", ""]
     for tol, entry in out["tolerances"].items():
         lines += [f"## Tolerance {tol} cm", "",
                   "| clip | frames | fk-wavelet bytes | spline bytes | fk/spline | fk max / p99 / mean cm | spline max / p99 / mean cm |",
@@ -225,7 +234,8 @@ def report(out: dict) -> str:
         lines.append("")
     lines += ["## ROI coding (max-shift)", "",
               "Constraint joints LeftFoot, RightFoot, LeftToeBase, RightToeBase; constraint frames "
-              "the 31 around the middle of the clip. Errors through the C runtime.", "",
+              "the 31 around the middle of the clip. Errors through the C runtime. The last row of each "
+              "clip is the same ROI machinery with every frame a constraint frame.", "",
               "| clip | run | bytes | ROI gain | feet max cm in window | feet max cm elsewhere | max cm |",
               "|---|---|---|---|---|---|---|"]
     for clip, rows in out["roi"].items():
