@@ -424,6 +424,9 @@ class FkWaveletSettings:
         Once the clip passes, every track's step code is raised by ``coarsen`` (a factor
         2^(coarsen/4)) up to ``coarsen_tries`` times, each try refined at most
         ``coarsen_repairs`` rounds; the smallest passing payload is kept.
+    relax_tries, relax_below : int, float, default 4, 0.8
+        Then, up to ``relax_tries`` times, the tracks whose points all stay under
+        ``relax_below`` of their tolerance get coarser steps; kept when smaller and passing.
     roi_frames : tuple of (first, last) frame ranges, default ()
         Constraint frames (§4.2): region-of-interest coding by the max-shift method. The
         detail coefficients whose synthesis reaches these frames, on the tracks of the
@@ -448,6 +451,8 @@ class FkWaveletSettings:
     coarsen: int = 2
     coarsen_tries: int = 6
     coarsen_repairs: int = 4
+    relax_tries: int = 4
+    relax_below: float = 0.8
     roi_frames: tuple = ()
     roi_nodes: tuple = ()
     roi_tolerance_cm: float | None = None
@@ -592,6 +597,26 @@ class _Encoder:
         return True
 
 
+    def relax(self, errors: np.ndarray, below: float) -> bool:
+        """Raise the step codes of tracks whose points all keep headroom: the worst ratio of
+        error to tolerance over the points a track moves most under ``below``. Returns
+        whether any code changed."""
+        ratio = np.max(errors / self.tol_fn, axis=0)  # (N,)
+        reach = self.fitter.reach
+        changed = False
+        for key, t in self.tracks.items():
+            k = self.rows[key]
+            hit = reach.affects[k]
+            if not hit.any():
+                continue
+            lever = np.where(hit, reach.lever[k], 0.0)
+            worst = float(np.max(np.where(lever >= 0.5 * lever.max(), ratio, 0.0)))
+            if worst < below:
+                t.code += int(np.clip(np.floor(4.0 * np.log2(below / max(worst, 1e-9))), 1, 4))
+                changed = True
+        return changed
+
+
 def roi_band_masks(frames: int, levels: int, roi_frames: np.ndarray) -> list[np.ndarray]:
     """Per band, the coefficients whose synthesis reaches a constraint frame. A level-l
     coefficient sits at frame k 2^l (approximation) or (2k + 1) 2^(l-1) (detail) and its
@@ -644,6 +669,18 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
     for _ in range(settings.coarsen_tries):
         for k, t in enc.tracks.items():
             t.code = best_codes[k] + settings.coarsen
+        found = _meet(enc, check, settings.coarsen_repairs)
+        if found is None or len(found[0]) >= len(best):
+            break
+        best, best_errors, r = found
+        repairs += r + 1
+        best_codes = {k: t.code for k, t in enc.tracks.items()}
+    # Then track by track: coarser steps where a track's points keep headroom.
+    for _ in range(settings.relax_tries):
+        for k, t in enc.tracks.items():
+            t.code = best_codes[k]
+        if not enc.relax(best_errors, settings.relax_below):
+            break
         found = _meet(enc, check, settings.coarsen_repairs)
         if found is None or len(found[0]) >= len(best):
             break
