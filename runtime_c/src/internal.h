@@ -172,6 +172,7 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
 extern const mcd_codec_ops mcd_codec_spline_ops;
 extern const mcd_codec_ops mcd_codec_neural_ops;
 extern const mcd_codec_ops mcd_codec_rma_ops;
+extern const mcd_codec_ops mcd_codec_fkwavelet_ops;
 
 /* ---------------------------------------------------------------- container access */
 /* Resolve clip `clip` of an opened (validated) asset. */

@@ -84,4 +84,6 @@ _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
     "neural": _per_clip("neural", "NeuralSettings", lambda r: {
         "frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
         "stages": r.stages, "encode_seconds": r.seconds}),
+    "fk-wavelet": _per_clip("fk_wavelet", "FkWaveletSettings", lambda r: {
+        "levels": r.levels, "tracks": r.tracks, "repairs": r.repairs, "encode_seconds": r.seconds}),
 }

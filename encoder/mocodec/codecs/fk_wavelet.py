@@ -1,0 +1,691 @@
+"""Codec ``fk-wavelet``: seed 000 §4 (FKBC) — per-channel 9/7 wavelet coding of the joint
+curves with per-joint quantization steps and forward-kinematics compensation, written as
+docs/FORMAT.md's ``FKWV`` payload.
+
+Channels: each animated joint's local rotation as a sign-continuous quaternion (4 channels,
+normalised at decode), each translated node's local translation (3 channels). Each channel is
+transformed with the CDF 9/7 wavelet (the filter pair PyWavelets calls ``bior4.4``) in lifting
+form with whole-sample symmetric extension: non-expansive (F coefficients for F frames, any F),
+no wrap-around at the clip ends, and the C decoder repeats the same float32 lifting steps, so
+the encoder knows the decoded curves to the last bit on x86-64.
+
+Coefficients are quantized with ``step = 2^((track_code + band_code) / 4 - 64)``: one code per
+track (the paper's hierarchical per-joint step sizes) and one per band (equalising each band's
+reconstruction noise). They are entropy coded band by band, coarsest first, so any prefix of
+the band streams decodes to a coarser motion (progressive decoding, §4).
+
+Forward-kinematics compensation (§4.3): joints are coded parents first; a joint's rotation
+target is re-solved against its parent's *decoded* pose so that it re-aims its children at
+their original positions (the Wahba fit of the spline codec's ``_ClipFitter``), so a parent's
+quantization error is not carried down the chain.
+
+The encoder meets a world-space tolerance on every frame of every node as measured by the C
+runtime: encode, check, lower the step codes of the tracks that move failing nodes, repeat.
+"""
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .. import rotations as R
+from ..entropy import MAX_ABS, entropy_decode, entropy_encode
+from ..motion import Motion, Skeleton
+from ..tolerance import Tolerance, ancestors_matrix, effector_nodes, initial_budgets
+from .spline import SplineSettings, _ClipFitter
+
+ROT_IDENTITY, ROT_QUATERNION = 0, 2
+TRANS_REST, TRANS_CHANNELS = 0, 2
+HEADER = 16
+MAX_LEVELS = 15
+MAX_CODE_SUM = 296
+CODE_BIAS = 64  # step = 2^(code_sum / 4 - CODE_BIAS)
+BAND_BIAS = 64  # band codes are 64 + round(4 log2(1 / synthesis gain))
+MAX_ROI = 30    # ROI gain and per-band max-shift
+CLAMP = np.float32(1e7)
+
+# CDF 9/7 lifting constants, as the float32 values the C decoder uses.
+ALPHA = np.float32(-1.5861343)
+BETA = np.float32(-0.052980117)
+GAMMA = np.float32(0.8829111)
+DELTA = np.float32(0.44350687)
+SCALE = np.float32(1.2301741)
+INV_SCALE = np.float32(0.81289306)
+MANTISSA = np.array([1.0, 1.1892071, 1.4142135, 1.6817929], dtype=np.float32)
+
+
+class ToleranceNotMet(RuntimeError):
+    """The encoder could not reach the requested tolerance."""
+
+
+# ------------------------------------------------------------------------ the transform
+def level_length(frames: int, level: int) -> int:
+    """Samples of the level-``level`` approximation: ceil(F / 2^level)."""
+    return -(-frames // (1 << level))
+
+
+def max_levels(frames: int, cap: int = MAX_LEVELS) -> int:
+    """Most levels such that every level splits a signal of at least two samples."""
+    levels = 0
+    while levels < cap and level_length(frames, levels) >= 2:
+        levels += 1
+    return levels
+
+
+def band_rows(frames: int, levels: int) -> list[int]:
+    """Rows of each band, coarse to fine: the approximation, then details of level L ... 1."""
+    rows = [level_length(frames, levels)]
+    for l in range(levels, 0, -1):
+        rows.append(level_length(frames, l - 1) - level_length(frames, l))
+    return rows
+
+
+def _mirror_indices(ns: int, nd: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Neighbour indices of the whole-sample symmetric extension: d[k-1], d[k] for each s[k]
+    (d[-1] = d[0], d[nd] = d[nd-1]) and s[k+1] for each d[k] (s[ns] = s[ns-1])."""
+    k = np.arange(ns)
+    dl = np.maximum(k - 1, 0)
+    dr = np.minimum(k, nd - 1)
+    sn = np.minimum(np.arange(nd) + 1, ns - 1)
+    return dl, dr, sn
+
+
+def forward(x: np.ndarray, levels: int) -> list[np.ndarray]:
+    """Analysis of the columns of ``x`` (F, C), float64. Returns the bands coarse to fine."""
+    a = np.asarray(x, dtype=np.float64)
+    details = []
+    k_scale, k_inv = float(SCALE), float(INV_SCALE)
+    for _ in range(levels):
+        s, d = a[0::2].copy(), a[1::2].copy()
+        dl, dr, sn = _mirror_indices(len(s), len(d))
+        d += float(ALPHA) * (s[: len(d)] + s[sn])
+        s += float(BETA) * (d[dl] + d[dr])
+        d += float(GAMMA) * (s[: len(d)] + s[sn])
+        s += float(DELTA) * (d[dl] + d[dr])
+        s /= k_scale
+        d /= k_inv
+        details.append(d)
+        a = s
+    return [a] + details[::-1]
+
+
+def _inverse_level(s: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The decoder's float32 undoing of one level (same operations as the C runtime)."""
+    s = s * SCALE
+    d = d * INV_SCALE
+    dl, dr, sn = _mirror_indices(len(s), len(d))
+    nd = len(d)
+    s = s - DELTA * (d[dl] + d[dr])
+    d = d - GAMMA * (s[:nd] + s[sn])
+    s = s - BETA * (d[dl] + d[dr])
+    d = d - ALPHA * (s[:nd] + s[sn])
+    out = np.empty((len(s) + nd,) + s.shape[1:], dtype=np.float32)
+    out[0::2] = np.clip(s, -CLAMP, CLAMP)
+    out[1::2] = np.clip(d, -CLAMP, CLAMP)
+    return out
+
+
+def inverse_f32(bands: list[np.ndarray]) -> np.ndarray:
+    """Synthesis from dequantized float32 bands (coarse to fine), exactly as the runtime."""
+    a = np.clip(np.asarray(bands[0], dtype=np.float32), -CLAMP, CLAMP)
+    for d in bands[1:]:
+        a = _inverse_level(a, np.asarray(d, dtype=np.float32))
+    return a
+
+
+def step_value(code_sum: np.ndarray | int) -> np.ndarray:
+    """The float32 step of a code sum, as the runtime computes it (ldexpf of a mantissa)."""
+    e = np.asarray(code_sum, dtype=np.int64)
+    return np.ldexp(MANTISSA[e & 3], (e >> 2) - CODE_BIAS).astype(np.float32)
+
+
+def synthesis_gains(frames: int, levels: int) -> np.ndarray:
+    """L2 norm of one coefficient's synthesis function, per band (measured mid-signal)."""
+    rows = band_rows(frames, levels)
+    gains = np.empty(len(rows))
+    for b, n in enumerate(rows):
+        bands = [np.zeros((r, 1), dtype=np.float32) for r in rows]
+        bands[b][n // 2, 0] = 1.0
+        gains[b] = float(np.linalg.norm(inverse_f32(bands).astype(np.float64)))
+    return gains
+
+
+def band_codes(frames: int, levels: int, tilt: float = 0.0) -> np.ndarray:
+    """Band codes that give every band the same reconstruction noise per unit step;
+    ``tilt`` (codes per level) makes finer bands coarser."""
+    g = synthesis_gains(frames, levels)
+    fine = np.arange(len(g), dtype=np.float64)  # 0 coarse ... L finest
+    codes = BAND_BIAS + np.rint(-4.0 * np.log2(g) + tilt * fine)
+    return np.clip(codes, 0, 255).astype(np.int64)
+
+
+# ------------------------------------------------------------------------ tracks
+@dataclass
+class _Track:
+    node: int
+    is_rotation: bool
+    code: int                       # the track's step code
+    values: np.ndarray | None = None  # (F, 4|3) the signal coded last
+    q: list[np.ndarray] = field(default_factory=list)  # quantized bands (background step)
+    q_roi: list[np.ndarray] = field(default_factory=list)  # ROI values (finer step), 0 elsewhere
+    roi: list[np.ndarray] = field(default_factory=list)    # where q_roi replaces q
+
+    @property
+    def width(self) -> int:
+        return 4 if self.is_rotation else 3
+
+
+def _quantize(track: _Track, values: np.ndarray, levels: int, bcodes: np.ndarray,
+              roi: list[np.ndarray] | None = None, gain: int = 0) -> np.ndarray:
+    """Quantize ``values`` for ``track``; returns what the runtime decodes (F, w) float32.
+
+    ``roi`` (per band, bool rows) marks the coefficients of constraint frames: they are
+    quantized with the step / 2^gain and later written max-shifted (:func:`serialize`)."""
+    bands = forward(values, levels)
+    q, qr, masks, deq = [], [], [], []
+    for b, coef in enumerate(bands):
+        step = step_value(track.code + int(bcodes[b]))
+        qi = np.rint(coef / float(step))
+        mask = np.zeros(coef.shape, dtype=bool)
+        qf = np.zeros(coef.shape)
+        if roi is not None and gain > 0:
+            mask = np.broadcast_to(roi[b][:, None], coef.shape).copy()
+            qf = np.where(mask, np.rint(coef * 2.0 ** gain / float(step)), 0.0)
+            mask &= qf != 0  # an ROI zero is a background zero
+        for arr in (qi, qf):
+            if arr.size and np.abs(arr).max() > MAX_ABS:
+                raise ToleranceNotMet(f"node {track.node}: step too small for the entropy coder")
+        q.append(qi.astype(np.int64))
+        qr.append(qf.astype(np.int64))
+        masks.append(mask)
+        fine = np.ldexp(step, -gain).astype(np.float32)
+        deq.append(np.where(mask, qf.astype(np.float32) * fine, qi.astype(np.float32) * step))
+    track.values = values
+    track.q, track.q_roi, track.roi = q, qr, masks
+    return inverse_f32(deq)
+
+
+def _normalize_f32(q: np.ndarray) -> np.ndarray:
+    """The runtime's quaternion normalisation in float32 (identity for a zero vector)."""
+    q = q.astype(np.float32)
+    n2 = np.float32(0.0) + q[:, 0] * q[:, 0]
+    n2 = n2 + q[:, 1] * q[:, 1]
+    n2 = n2 + q[:, 2] * q[:, 2]
+    n2 = n2 + q[:, 3] * q[:, 3]
+    ok = n2 > np.float32(1e-30)
+    inv = np.float32(1.0) / np.sqrt(np.where(ok, n2, np.float32(1.0)))
+    out = q * inv[:, None]
+    out[~ok] = np.array([0, 0, 0, 1], dtype=np.float32)
+    return out
+
+
+# ------------------------------------------------------------------------ payload
+def roi_shifts(levels: int, tracks: list[_Track]) -> np.ndarray:
+    """Max-shift per band: the bit length of the largest background value (so every
+    background value is below 2^shift), 0 for a band without ROI values."""
+    shifts = np.zeros(levels + 1, dtype=np.int64)
+    for b in range(levels + 1):
+        if not any(t.roi and t.roi[b].any() for t in tracks):
+            continue
+        top = max((int(np.abs(np.where(t.roi[b], 0, t.q[b])).max(initial=0)) if t.roi else
+                   int(np.abs(t.q[b]).max(initial=0))) for t in tracks)
+        shifts[b] = max(1, top.bit_length())
+    if shifts.max() > MAX_ROI:
+        raise ToleranceNotMet("ROI shift past the format's bound")
+    return shifts
+
+
+def _coded(t: _Track, b: int, shift: int) -> np.ndarray:
+    """Band b of a track as written: background values, ROI values scaled up by 2^shift."""
+    if not t.roi or not t.roi[b].any():
+        return t.q[b]
+    out = np.where(t.roi[b], t.q_roi[b] << shift, t.q[b])
+    if np.abs(out).max() > MAX_ABS:
+        raise ToleranceNotMet(f"node {t.node}: max-shifted ROI values exceed the entropy coder's range")
+    return out
+
+
+def serialize(skeleton: Skeleton, frames: int, levels: int, bcodes: np.ndarray,
+              tracks: dict[tuple[int, bool], _Track], gain: int = 0) -> bytes:
+    """The ``FKWV`` payload (docs/FORMAT.md)."""
+    n = skeleton.node_count
+    nodes = []
+    shifts = roi_shifts(levels, list(tracks.values())) if gain else np.zeros(levels + 1, dtype=np.int64)
+    columns: list[list[np.ndarray]] = [[] for _ in range(levels + 1)]
+    channels = 0
+    for i in range(n):
+        rot, tr = tracks.get((i, True)), tracks.get((i, False))
+        nodes.append(struct.pack("<BBBB", ROT_QUATERNION if rot else ROT_IDENTITY,
+                                 TRANS_CHANNELS if tr else TRANS_REST,
+                                 rot.code if rot else 0, tr.code if tr else 0))
+        for t in (rot, tr):
+            if t is not None:
+                channels += t.width
+                for b in range(levels + 1):
+                    columns[b].append(_coded(t, b, int(shifts[b])))
+    streams = []
+    rows = band_rows(frames, levels)
+    for b in range(levels + 1):
+        if channels:
+            block = np.concatenate(columns[b], axis=1)
+            assert block.shape == (rows[b], channels)
+            streams.append(entropy_encode(block.reshape(-1), 1))
+        else:
+            streams.append(b"")
+    codes = bytes(int(c) for c in bcodes) + bytes(int(x) for x in shifts)
+    codes += bytes((-len(codes)) % 4)
+    body = b"".join([
+        struct.pack("<IIIBB2x", frames, n, channels, levels, gain),
+        b"".join(nodes),
+        codes,
+        struct.pack(f"<{levels + 1}I", *[len(s) for s in streams]),
+        b"".join(streams),
+    ])
+    return body + bytes((-len(body)) % 4)
+
+
+@dataclass
+class ParsedPayload:
+    frames: int
+    nodes: int
+    channels: int
+    levels: int
+    roi_gain: int
+    node_table: np.ndarray      # (N, 4) uint8
+    band_codes: np.ndarray      # (L+1,)
+    roi_shifts: np.ndarray      # (L+1,)
+    band_bytes: list[int]
+    streams_offset: int         # where the first stream starts
+
+
+def parse(payload: bytes) -> ParsedPayload:
+    frames, nodes, channels, levels, gain = struct.unpack_from("<IIIBB", payload, 0)
+    nt = np.frombuffer(payload, dtype=np.uint8, count=4 * nodes, offset=HEADER).reshape(nodes, 4)
+    off = HEADER + 4 * nodes
+    codes = np.frombuffer(payload, dtype=np.uint8, count=2 * (levels + 1), offset=off).astype(np.int64)
+    off += -(-2 * (levels + 1) // 4) * 4
+    sizes = list(struct.unpack_from(f"<{levels + 1}I", payload, off))
+    off += 4 * (levels + 1)
+    return ParsedPayload(frames, nodes, channels, levels, gain, nt.copy(), codes[:levels + 1],
+                         codes[levels + 1:], sizes, off)
+
+
+def prefix_bytes(payload: bytes, bands: int) -> int:
+    """Bytes a decoder reads to use the first ``bands`` band streams (header and tables too)."""
+    p = parse(payload)
+    return p.streams_offset + sum(p.band_bytes[:bands])
+
+
+def decode_channels(payload: bytes, bands: int | None = None) -> tuple[ParsedPayload, np.ndarray]:
+    """Every channel on every frame (F, C) float32, as the runtime reconstructs it at open.
+    ``bands`` < L + 1 uses only the first band streams (progressive decoding: the finer bands
+    are taken as zero) and reads only :func:`prefix_bytes` bytes of the payload."""
+    p = parse(payload)
+    use = p.levels + 1 if bands is None else max(1, min(bands, p.levels + 1))
+    rows = band_rows(p.frames, p.levels)
+    codes = []
+    for i in range(p.nodes):
+        if p.node_table[i, 0] == ROT_QUATERNION:
+            codes += [int(p.node_table[i, 2])] * 4
+        if p.node_table[i, 1] == TRANS_CHANNELS:
+            codes += [int(p.node_table[i, 3])] * 3
+    track_codes = np.asarray(codes, dtype=np.int64)
+    data = payload[: prefix_bytes(payload, use)]
+    deq = []
+    off = p.streams_offset
+    for b in range(p.levels + 1):
+        if b < use and p.channels:
+            q = entropy_decode(data[off: off + p.band_bytes[b]], rows[b] * p.channels, 1)
+            q = q.reshape(rows[b], p.channels)
+            step = step_value(track_codes + p.band_codes[b])[None, :]
+            shift = int(p.roi_shifts[b])
+            if shift:
+                fine = np.ldexp(step, -(shift + p.roi_gain)).astype(np.float32)
+                step = np.where(np.abs(q.astype(np.int64)) >= (1 << shift), fine, step)
+            deq.append(q.astype(np.float32) * step)
+        else:
+            deq.append(np.zeros((rows[b], p.channels), dtype=np.float32))
+        off += p.band_bytes[b]
+    return p, inverse_f32(deq)
+
+
+def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray | None = None,
+                   bands: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Reference decoder: local rotations (K, N, 4) and translations (K, N, 3) at frame
+    positions ``x`` (default: every frame), computed in float32 as the runtime does
+    (channels interpolated linearly between frames, quaternions normalised)."""
+    p, ch = decode_channels(payload, bands)
+    x = np.arange(p.frames, dtype=np.float32) if x is None else np.asarray(x, dtype=np.float32)
+    i0 = np.minimum(x.astype(np.int64), p.frames - 1)
+    i1 = np.minimum(i0 + 1, p.frames - 1)
+    t = (x - i0.astype(np.float32))[:, None]
+    a, b = ch[i0], ch[i1]
+    v = a + (b - a) * t
+    rot = np.zeros((len(x), p.nodes, 4))
+    rot[..., 3] = 1.0
+    trans = np.broadcast_to(np.asarray(skeleton.offsets, dtype=np.float32).astype(np.float64),
+                            (len(x), p.nodes, 3)).copy()
+    c = 0
+    for i in range(p.nodes):
+        if p.node_table[i, 0] == ROT_QUATERNION:
+            rot[:, i] = _normalize_f32(v[:, c:c + 4])
+            c += 4
+        if p.node_table[i, 1] == TRANS_CHANNELS:
+            trans[:, i] = v[:, c:c + 3]
+            c += 3
+    return rot, trans
+
+
+def progressive_errors(payload: bytes, motion: Motion, cm_per_unit: float) -> list[dict[str, float]]:
+    """Error against ``motion`` of every prefix of the band streams: for k = 1 ... L + 1 bands,
+    the bytes read and the max / p99 / mean world position error (cm) over every frame and
+    node, decoded with :func:`decode_payload`."""
+    from ..kinematics import forward_kinematics
+
+    sk = motion.skeleton
+    _, pos_o = forward_kinematics(sk, motion.rotations, motion.translations)
+    p = parse(payload)
+    out = []
+    for k in range(1, p.levels + 2):
+        rot, trans = decode_payload(payload, sk, bands=k)
+        _, pos = forward_kinematics(sk, rot, trans)
+        err = np.linalg.norm(pos - pos_o, axis=-1) * cm_per_unit
+        out.append({"bands": k, "bytes": prefix_bytes(payload, k), "max_cm": float(err.max()),
+                    "p99_cm": float(np.percentile(err, 99)), "mean_cm": float(err.mean())})
+    return out
+
+
+# ------------------------------------------------------------------------ encoder
+@dataclass
+class FkWaveletSettings:
+    """Settings of the ``fk-wavelet`` codec.
+
+    Parameters
+    ----------
+    tolerance : Tolerance
+        Max world-space position error per node, every frame (cm).
+    max_levels : int, default 8
+        Decomposition levels (fewer when the clip is too short).
+    budget_scale : float, default 6.0
+        Scale on the per-track error budgets of ``tolerance.initial_budgets`` (errors along a
+        chain rarely add up worst-case).
+    band_tilt : float, default 0.0
+        Step codes added per band from coarse to fine (0: equal noise per band).
+    compensate : bool, default True
+        Forward-kinematics compensation (§4.3); False codes the original local rotations.
+    max_repairs : int, default 40
+        Rounds of check-through-the-runtime and step refinement before giving up.
+    shell_cm : float, default 3.0
+        Virtual vertices this far from a joint fix its twist in the compensation fit.
+    coarsen, coarsen_tries, coarsen_repairs : int, default 2, 6, 4
+        Once the clip passes, every track's step code is raised by ``coarsen`` (a factor
+        2^(coarsen/4)) up to ``coarsen_tries`` times, each try refined at most
+        ``coarsen_repairs`` rounds; the smallest passing payload is kept.
+    relax_tries, relax_below : int, float, default 4, 0.8
+        Then, up to ``relax_tries`` times, the tracks whose points all stay under
+        ``relax_below`` of their tolerance get coarser steps; kept when smaller and passing.
+    roi_frames : tuple of (first, last) frame ranges, default ()
+        Constraint frames (§4.2): region-of-interest coding by the max-shift method. The
+        detail coefficients whose synthesis reaches these frames, on the tracks of the
+        constraint nodes and their ancestors, are quantized 2^gain times finer and written
+        scaled up past every other value of their band, so the decoder tells them apart by
+        magnitude alone; the coarsest band is made 2^gain times finer as a whole.
+    roi_nodes : tuple of str, default ()
+        Constraint joints (default: the end effectors, ``tolerance.effector_nodes``).
+    roi_tolerance_cm : float or None
+        The tolerance held on constraint frames at constraint joints (default: the clip's).
+    roi_gain, roi_max_gain : int, default 1, 14
+        First ROI gain (octaves) and the most the refinement may raise it to.
+    """
+
+    tolerance: Tolerance
+    max_levels: int = 8
+    budget_scale: float = 6.0
+    band_tilt: float = 0.0
+    compensate: bool = True
+    max_repairs: int = 40
+    shell_cm: float = 3.0
+    coarsen: int = 2
+    coarsen_tries: int = 6
+    coarsen_repairs: int = 4
+    relax_tries: int = 4
+    relax_below: float = 0.8
+    roi_frames: tuple = ()
+    roi_nodes: tuple = ()
+    roi_tolerance_cm: float | None = None
+    roi_gain: int = 1
+    roi_max_gain: int = 14
+
+
+@dataclass
+class FkWaveletClipResult:
+    payload: bytes
+    errors_units: np.ndarray
+    repairs: int
+    levels: int
+    tracks: int
+    seconds: float
+
+
+CheckFn = Callable[[bytes], np.ndarray]
+
+
+class _Encoder:
+    def __init__(self, motion: Motion, cm_per_unit: float, settings: FkWaveletSettings) -> None:
+        self.motion = motion
+        self.settings = settings
+        self.frames = motion.frame_count
+        sk = motion.skeleton
+        self.fitter = _ClipFitter(motion, cm_per_unit,
+                                  SplineSettings(tolerance=settings.tolerance, shell_cm=settings.shell_cm))
+        self.tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
+        self.levels = max_levels(self.frames, min(settings.max_levels, MAX_LEVELS))
+        self.bcodes = band_codes(self.frames, self.levels, settings.band_tilt)
+        budgets = initial_budgets(self.fitter.reach, self.tol_units, settings.budget_scale)
+        self._setup_roi(cm_per_unit)
+        self.tracks: dict[tuple[int, bool], _Track] = {}
+        self.rows: dict[tuple[int, bool], int] = {}
+        for k, (i, rot) in enumerate(zip(self.fitter.track_nodes, self.fitter.track_is_rot)):
+            if rot:
+                q = motion.rotations[:, i]
+                if np.all(q == q[0]) and np.array_equal(q[0], [0.0, 0.0, 0.0, 1.0]):
+                    continue  # identity on every frame
+                step = 0.5 * budgets[k]
+            else:
+                step = 1.0 * budgets[k]
+            code = int(np.clip(np.floor(4.0 * (np.log2(max(step, 1e-30)) + CODE_BIAS)) - BAND_BIAS, 0, 255))
+            self.tracks[(i, rot)] = _Track(i, rot, code)
+            self.rows[(i, rot)] = k
+
+    def _setup_roi(self, cm_per_unit: float) -> None:
+        """Constraint cells (frame, node), their tolerance, the ROI tracks and band masks."""
+        s, sk, f = self.settings, self.motion.skeleton, self.frames
+        self.tol_fn = np.broadcast_to(self.tol_units, (f, sk.node_count)).copy()
+        self.roi_cells = np.zeros((f, sk.node_count), dtype=bool)
+        self.gain, self.roi_bands, self.roi_nodes_of = 0, None, np.zeros(sk.node_count, dtype=bool)
+        if not s.roi_frames:
+            return
+        frames = np.zeros(f, dtype=bool)
+        for first, last in s.roi_frames:
+            frames[max(0, int(first)): min(f, int(last) + 1)] = True
+        nodes = ([sk.index(n) for n in s.roi_nodes] if s.roi_nodes
+                 else list(np.flatnonzero(effector_nodes(sk))))
+        self.roi_cells[np.ix_(frames, nodes)] = True
+        if s.roi_tolerance_cm is not None:
+            self.tol_fn[self.roi_cells] = np.minimum(self.tol_fn[self.roi_cells], s.roi_tolerance_cm / cm_per_unit)
+        self.roi_nodes_of = ancestors_matrix(sk)[:, nodes].any(axis=1)  # tracks of these nodes
+        self.gain = int(s.roi_gain)
+        self.roi_bands = roi_band_masks(f, self.levels, frames)
+
+    def _band_codes(self) -> np.ndarray:
+        """Band codes in use: with ROI the coarsest band is 2^gain times finer as a whole."""
+        codes = self.bcodes.copy()
+        if self.gain:
+            codes[0] = max(0, codes[0] - 4 * self.gain)
+        return codes
+
+    def _clamp_codes(self) -> None:
+        top = MAX_CODE_SUM - int(self.bcodes.max())
+        for t in self.tracks.values():
+            t.code = int(np.clip(t.code, 0, top))
+
+    def code_pass(self) -> bytes:
+        """Quantize every track parents first (each rotation re-solved against the decoded
+        parent when compensating) and return the payload."""
+        self._clamp_codes()
+        bcodes = self._band_codes()
+        sk = self.motion.skeleton
+        n = sk.node_count
+        rot_d = np.empty((self.frames, n, 4))
+        pos_d = np.empty((self.frames, n, 3))
+        for i in range(n):
+            p = sk.parents[i]
+            t = self.tracks.get((i, False))
+            if t is not None:
+                local_t = _quantize(t, self.motion.translations[:, i], self.levels, bcodes,
+                                    *self._roi_for(i)).astype(np.float64)
+            else:
+                local_t = np.broadcast_to(np.asarray(sk.offsets[i], dtype=np.float32).astype(np.float64), (self.frames, 3))
+            pos_d[:, i] = local_t if p < 0 else pos_d[:, p] + R.quat_rotate(rot_d[:, p], local_t)
+            t = self.tracks.get((i, True))
+            if t is not None:
+                if self.settings.compensate:
+                    target = self.fitter._rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
+                else:
+                    target = self.motion.rotations[:, i]
+                target = R.quat_make_continuous(target)
+                local_q = _normalize_f32(_quantize(t, target, self.levels, bcodes,
+                                                   *self._roi_for(i))).astype(np.float64)
+            else:
+                local_q = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (self.frames, 4))
+            rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
+        return serialize(sk, self.frames, self.levels, bcodes, self.tracks, self.gain)
+
+    def _roi_for(self, node: int) -> tuple[list[np.ndarray] | None, int]:
+        if self.roi_bands is None or not self.roi_nodes_of[node]:
+            return None, 0
+        return self.roi_bands, self.gain
+
+    def refine(self, errors: np.ndarray) -> bool:
+        """Where the check fails: raise the ROI gain for failing constraint cells (until its
+        cap); lower the step codes of tracks that move other failing nodes — by the code
+        distance of the worst ratio on the failing nodes the track moves most, else by one."""
+        over = errors > self.tol_fn
+        if not over.any():
+            return False
+        background = over
+        if self.gain and (over & self.roi_cells).any():
+            if self.gain < min(self.settings.roi_max_gain, MAX_ROI):
+                self.gain += 1
+                background = over & ~self.roi_cells
+        ratio = np.max(np.where(background, errors / self.tol_fn, 0.0), axis=0)  # (N,)
+        failing = ratio > 1.0
+        reach = self.fitter.reach
+        for key, t in self.tracks.items():
+            k = self.rows[key]
+            hit = failing & reach.affects[k]
+            if not hit.any():
+                continue
+            # The points this track moves most (largest lever) carry its error best.
+            lever = np.where(hit, reach.lever[k], 0.0)
+            worst = float(np.max(np.where(lever >= 0.5 * lever.max(), ratio, 0.0)))
+            drop = int(np.clip(np.ceil(4.0 * np.log2(max(worst, 1.0 + 1e-9))), 1, 8))
+            t.code -= drop
+        return True
+
+
+    def relax(self, errors: np.ndarray, below: float) -> bool:
+        """Raise the step codes of tracks whose points all keep headroom: the worst ratio of
+        error to tolerance over the points a track moves most under ``below``. Returns
+        whether any code changed."""
+        ratio = np.max(errors / self.tol_fn, axis=0)  # (N,)
+        reach = self.fitter.reach
+        changed = False
+        for key, t in self.tracks.items():
+            k = self.rows[key]
+            hit = reach.affects[k]
+            if not hit.any():
+                continue
+            lever = np.where(hit, reach.lever[k], 0.0)
+            worst = float(np.max(np.where(lever >= 0.5 * lever.max(), ratio, 0.0)))
+            if worst < below:
+                t.code += int(np.clip(np.floor(4.0 * np.log2(below / max(worst, 1e-9))), 1, 4))
+                changed = True
+        return changed
+
+
+def roi_band_masks(frames: int, levels: int, roi_frames: np.ndarray) -> list[np.ndarray]:
+    """Per band, the coefficients whose synthesis reaches a constraint frame. A level-l
+    coefficient sits at frame k 2^l (approximation) or (2k + 1) 2^(l-1) (detail) and its
+    synthesis spans less than 4 · 2^l frames either side (7- and 9-tap filters at every level).
+    The coarsest band is never marked (it is made finer as a whole)."""
+    hits = np.concatenate(([0], np.cumsum(roi_frames.astype(np.int64))))
+    rows = band_rows(frames, levels)
+    out = [np.zeros(rows[0], dtype=bool)]
+    for b in range(1, levels + 1):
+        l = levels + 1 - b
+        centre = (2 * np.arange(rows[b]) + 1) << (l - 1)
+        r = 4 << l
+        lo = np.clip(centre - r, 0, frames)
+        hi = np.clip(centre + r + 1, 0, frames)
+        out.append(hits[hi] - hits[lo] > 0)
+    return out
+
+
+def _meet(enc: _Encoder, check: CheckFn, rounds: int) -> tuple[bytes, np.ndarray, int] | None:
+    """Code, check through the runtime and refine until every node is within tolerance;
+    None when ``rounds`` refinements do not get there."""
+    for repair in range(rounds + 1):
+        payload = enc.code_pass()
+        errors = check(payload)
+        if np.all(errors <= enc.tol_fn):
+            return payload, errors, repair
+        if repair < rounds:
+            enc.refine(errors)
+    enc.last_errors = errors
+    return None
+
+
+def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
+                check: CheckFn) -> FkWaveletClipResult:
+    """Encode one clip so that every node's error measured by ``check`` (through the C
+    runtime) is within the tolerance on every frame.
+
+    From the initial per-track steps the encoder refines until the clip passes, then tries
+    coarser steps for every track at once (``settings.coarsen`` codes, one quarter octave each,
+    per try), refining each try, and keeps the smallest payload that passes."""
+    started = time.perf_counter()
+    enc = _Encoder(motion, cm_per_unit, settings)
+    found = _meet(enc, check, settings.max_repairs)
+    if found is None:
+        worst = float(np.max(enc.last_errors / enc.tol_fn))
+        raise ToleranceNotMet(f"{motion.name}: still {worst:.3f}x over the tolerance after "
+                              f"{settings.max_repairs} refinements")
+    best, best_errors, repairs = found
+    best_codes = {k: t.code for k, t in enc.tracks.items()}
+    for _ in range(settings.coarsen_tries):
+        for k, t in enc.tracks.items():
+            t.code = best_codes[k] + settings.coarsen
+        found = _meet(enc, check, settings.coarsen_repairs)
+        if found is None or len(found[0]) >= len(best):
+            break
+        best, best_errors, r = found
+        repairs += r + 1
+        best_codes = {k: t.code for k, t in enc.tracks.items()}
+    # Then track by track: coarser steps where a track's points keep headroom.
+    for _ in range(settings.relax_tries):
+        for k, t in enc.tracks.items():
+            t.code = best_codes[k]
+        if not enc.relax(best_errors, settings.relax_below):
+            break
+        found = _meet(enc, check, settings.coarsen_repairs)
+        if found is None or len(found[0]) >= len(best):
+            break
+        best, best_errors, r = found
+        repairs += r + 1
+        best_codes = {k: t.code for k, t in enc.tracks.items()}
+    return FkWaveletClipResult(best, best_errors, repairs, enc.levels, len(enc.tracks),
+                               time.perf_counter() - started)
