@@ -74,7 +74,7 @@ class StepQuantizer:
         Raises ValueError when a value would need ``|q| > 2**24``."""
         st = np.asarray(step, dtype=np.float32).astype(np.float64)
         reach = np.maximum(np.abs(np.asarray(lo, dtype=np.float64)), np.abs(np.asarray(hi, dtype=np.float64)))
-        if np.any(st <= 0) or np.any(reach / st >= cls.MAX_Q):
+        if np.any(st <= 0) or np.any(reach / st >= cls.MAX_Q) or np.any(reach >= 1e7):
             raise ValueError(f"range {reach.max():.6g} needs more than 2**24 steps of {st.min():.3g}")
         return cls(st)
 

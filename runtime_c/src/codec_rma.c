@@ -131,9 +131,8 @@ static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
                 float step[4];
                 desc_steps(d, kind, step);
                 for (c = 0; c < dims; ++c)
-                    /* Every value is q x step with |q| <= 2^24: keep it within the format's bound. */
-                    if (!mcd_finite(step[c]) || step[c] < 0.0f || step[c] * (float)MAX_Q > MCD_MAX_ABS_VALUE)
-                        return MCD_ERROR_MALFORMED;
+                    /* The decoded values are bounded at open (q x step within the format's bound). */
+                    if (!mcd_in_bounds(step[c]) || step[c] < 0.0f) return MCD_ERROR_MALFORMED;
             }
             if (kind == KIND_TWIST) {
                 float ax = (float)(int16_t)mcd_rd_u16(d + 20), ay = (float)(int16_t)mcd_rd_u16(d + 22);
@@ -278,7 +277,10 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
                 q[i * dims + c] = (int32_t)acc;
             }
         }
-        for (i = 0; i < count * dims; ++i) b.values[value + i] = (float)q[i] * step[i % dims];
+        for (i = 0; i < count * dims; ++i) {
+            b.values[value + i] = (float)q[i] * step[i % dims];
+            if (!mcd_in_bounds(b.values[value + i])) return MCD_ERROR_MALFORMED;
+        }
         /* Seek: per 32-frame block, the last key at or before its first frame. */
         for (j = 0, i = 0; j < L->seek_len; ++j) {
             uint32_t f = j << SEEK_SHIFT;
