@@ -26,7 +26,9 @@ test: venv
 	@bash tests/run_all.sh
 
 bench: venv
-	$(PY) bench/run_bench.py
+	$(PY) bench/run_bench.py --codec rma --tolerances 0.02 0.1 0.5 1 2 3 6
+	$(PY) bench/run_bench.py --codec spline --tolerances 0.02 0.1 0.5 1 2 3 6
+	$(PY) bench/rd_plot.py
 
 clean:
 	rm -rf $(VENV) out runtime_c/build bench/results/*.mcd bench/results/sample_speed

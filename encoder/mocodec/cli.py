@@ -349,8 +349,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="BVH files or folders of BVH files (one clip each)")
-    p.add_argument("--codec", default="spline", choices=codecs.available(),
-                   help="codec (default: %(default)s)")
+    p.add_argument("--codec", default="rma", choices=codecs.available(),
+                   help="codec (default: %(default)s, the smallest that meets the tolerance: a "
+                        "whole library in one section; spline samples in place without resident "
+                        "memory)")
     p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
                    help="max world-space position error of any joint or end site on any frame, "
                         "in cm (default: %(default)s)")
@@ -415,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "
                                    "runtime, print ratio and error.")
-    p.add_argument("--codec", default="spline", choices=codecs.available())
+    p.add_argument("--codec", default="rma", choices=codecs.available())
     p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
     p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
                    help="where to write the asset and decoded BVH (default: %(default)s)")
