@@ -200,3 +200,28 @@ def test_dev_set_meets_one_cm_on_every_frame_as_one_library(shared_cmu_dir):
     assert sum(s[0] == b"RMAL" for s in _sections(result.asset)) == 1
     for m in motions:
         assert _error_cm(asset, m).max() <= 1.0, m.name
+
+
+@pytest.mark.parametrize("grid", [1, 4, 7])
+def test_key_grid_is_stored_and_the_tolerance_holds(sample_paths, grid):
+    m = read_bvh(sample_paths[0])
+    result = _encode([m], 1.0, key_grid=grid)
+    (_, payload), = _payloads(result.asset)
+    nodes, tracks, consts = struct.unpack_from("<III", payload, 8)[0], *struct.unpack_from("<II", payload, 12)
+    pos = 32 + (nodes + 3) // 4 * 4 + 4 * consts
+    grids = []
+    for _ in range(tracks):
+        grids.append(payload[pos + 1])
+        pos += {1: 20, 2: 32, 3: 16}[payload[pos]]
+    assert set(grids) == {grid}
+    assert _error_cm(Asset(result.asset), m).max() <= 1.0
+
+
+def test_key_grid_default_follows_the_tolerance():
+    from mocodec.codecs.rma import RMASettings
+
+    assert RMASettings(Tolerance(1.0)).key_grid == 4
+    assert RMASettings(Tolerance(1.0, 0.1)).key_grid == 1
+    assert RMASettings(Tolerance(0.02)).key_grid == 1
+    with pytest.raises(ValueError, match="key_grid"):
+        RMASettings(Tolerance(1.0), key_grid=9)

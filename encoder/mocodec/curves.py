@@ -48,6 +48,7 @@ def fit_keys(
     mandatory: np.ndarray,
     dequantize: Callable[[np.ndarray], np.ndarray],
     start: np.ndarray | None = None,
+    grid: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Place keys until the curve's error is within ``budget`` on every frame (seed 003 §5.1).
 
@@ -63,6 +64,9 @@ def fit_keys(
     error : maps a reconstruction (F, d) to the error per frame (F,).
     mandatory : sorted frames that are always keys (must include 0 and F - 1).
     dequantize : maps original key values (K, d) to what the decoder will see.
+    grid : new keys go on multiples of ``grid`` where a failing interval has one (coarser key
+        times cost fewer bits): the grid frame with the worst error/budget ratio; elsewhere on
+        the worst failing frame.
 
     Returns
     -------
@@ -77,6 +81,7 @@ def fit_keys(
     if start is not None:
         keys = np.union1d(keys, start)
     is_key = np.zeros(frames, dtype=bool)
+    on_grid = np.arange(frames) % grid == 0
     while True:
         recon = catmull_rom(keys, dequantize(values[keys]), x)
         ratio = error(recon) / budget
@@ -87,6 +92,12 @@ def fit_keys(
         is_key[:] = False
         is_key[keys] = True
         candidates = bad & ~is_key
+        if grid > 1:
+            # Grid frames of the failing intervals, failing or not; an interval with no grid
+            # frame left keeps its failing frames as candidates.
+            span = np.searchsorted(keys, np.arange(frames), side="right") - 1
+            gridded = on_grid & ~is_key & np.isin(span, span[bad])
+            candidates = gridded | (candidates & ~np.isin(span, span[gridded]))
         if not candidates.any():
             return keys, values[keys], False
         # Worst candidate of each failing interval: sort by (interval, -ratio), keep firsts.

@@ -55,6 +55,7 @@ static uint32_t kind_dims(uint32_t kind) {
 typedef struct layout {
     uint32_t size, frames, nodes, tracks, constants, keys, resident_offset, gap_bytes;
     uint32_t values;   /* key values over all tracks (sum of key_count x dims) */
+    uint32_t interior; /* keys between each track's first and last: two gap-stream values each */
     uint32_t seek_len; /* seek entries per track */
     const uint8_t *modes, *consts, *descs, *gaps, *streams;
 } layout;
@@ -73,7 +74,7 @@ static size_t clip_resident_bytes(const layout* L) {
  * at p. Does not decode the entropy streams (mcd_open does). */
 static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
     uint32_t i, off, track, consts_used = 0;
-    uint64_t keys = 0, values = 0, streams = 0, end;
+    uint64_t keys = 0, values = 0, streams = 0, interior = 0, end;
     if (avail < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
     L->size = mcd_rd_u32(p);
     L->frames = mcd_rd_u32(p + 4);
@@ -122,7 +123,7 @@ static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
             size = desc_size(kind);
             if (size == 0 || end + off + size > L->size) return MCD_ERROR_MALFORMED;
             if ((kind == KIND_TRANSLATION) != (pass == 1u)) return MCD_ERROR_MALFORMED;
-            if (d[1] || (kind == KIND_TRANSLATION && mcd_rd_u16(d + 2))) return MCD_ERROR_MALFORMED;
+            if (d[1] < 1u || d[1] > 8u || (kind == KIND_TRANSLATION && mcd_rd_u16(d + 2))) return MCD_ERROR_MALFORMED;
             dims = kind_dims(kind);
             count = mcd_rd_u32(d + desc_counts(kind));
             vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u);
@@ -141,6 +142,7 @@ static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
                 if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
             }
             keys += count;
+            interior += count - (count > 1u ? 2u : 1u);
             values += (uint64_t)count * dims;
             streams += vbytes;
             off += size;
@@ -150,6 +152,7 @@ static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
     if (track != L->tracks || consts_used != L->constants || keys != L->keys) return MCD_ERROR_MALFORMED;
     if (values > 0xFFFFFFFFu / 4u) return MCD_ERROR_MALFORMED;
     L->values = (uint32_t)values;
+    L->interior = (uint32_t)interior; /* <= keys */
     L->seek_len = seek_len(L->frames);
     L->gaps = L->descs + off;
     L->streams = L->gaps + L->gap_bytes;
@@ -230,7 +233,7 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
     clip_block b;
     uint32_t u, first = 0, value = 0, gap_pos = 0;
     size_t stream_off = 0;
-    const uint8_t* d = L->descs;
+    const uint8_t* d;
     int32_t* gaps;
     mcd_result r;
     block_views(block, L, &b);
@@ -238,33 +241,40 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
     ((uint32_t*)block)[1] = L->tracks;
     ((uint32_t*)block)[2] = L->keys;
     ((uint32_t*)block)[3] = L->values;
-    /* Gaps (minus one) of every track after its first key, decoded into the frame array's
-     * tail and expanded in place, front to back, to absolute frames. */
-    gaps = (int32_t*)(b.frames + L->tracks);
-    r = mcd_entropy_decode(L->gaps, L->gap_bytes, 1u, gaps, L->keys - L->tracks);
+    /* Key frames. Each interior key's (grid cells since the previous key's cell, offset in its
+     * cell) pair is decoded into the value array first (it holds at least 3 entries per key),
+     * then expanded into frames. */
+    gaps = (int32_t*)b.values;
+    r = mcd_entropy_decode(L->gaps, L->gap_bytes, 2u, gaps, 2u * L->interior);
     if (r != MCD_OK) return MCD_ERROR_MALFORMED;
-    for (u = 0; u < L->tracks; ++u) {
-        uint32_t kind = d[0], dims = kind_dims(kind), count = mcd_rd_u32(d + desc_counts(kind));
-        uint32_t vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u);
-        uint32_t i, c, j;
-        uint64_t frame = 0;
-        int32_t* q = (int32_t*)(b.values + value);
-        float step[4];
+    for (u = 0, d = L->descs; u < L->tracks; ++u) {
+        uint32_t kind = d[0], grid = d[1], count = mcd_rd_u32(d + desc_counts(kind)), i;
+        uint64_t cell = 0, frame = 0;
         b.track_table[4u * u] = first;
         b.track_table[4u * u + 1u] = count;
-        b.track_table[4u * u + 2u] = value;
-        /* In place: key i of track u is written to frames[first + i] after its gap was read
-         * from frames[tracks + first - u + i - 1], an index at least as large, so no gap is
-         * overwritten before it is read. */
         b.frames[first] = 0;
-        for (i = 1; i < count; ++i) {
-            int32_t g = gaps[gap_pos++];
-            if (g < 0) return MCD_ERROR_MALFORMED;
-            frame += (uint64_t)g + 1u;
-            if (frame > (uint64_t)L->frames - 1u) return MCD_ERROR_MALFORMED;
+        for (i = 1; i + 1u < count; ++i) {
+            int32_t step = gaps[2u * gap_pos], offset = gaps[2u * gap_pos + 1u];
+            uint64_t f;
+            gap_pos++;
+            if (step < 0 || offset < 0 || (uint32_t)offset >= grid) return MCD_ERROR_MALFORMED;
+            cell += (uint64_t)step;
+            f = cell * grid + (uint32_t)offset;
+            if (f <= frame || f >= (uint64_t)L->frames - 1u) return MCD_ERROR_MALFORMED;
+            frame = f;
             b.frames[first + i] = (uint32_t)frame;
         }
-        if (frame != (uint64_t)L->frames - 1u) return MCD_ERROR_MALFORMED;
+        if (count > 1u) b.frames[first + count - 1u] = L->frames - 1u; /* the last key is implied */
+        first += count;
+        d += desc_size(kind);
+    }
+    for (u = 0, d = L->descs; u < L->tracks; ++u) {
+        uint32_t kind = d[0], dims = kind_dims(kind), count = mcd_rd_u32(d + desc_counts(kind));
+        uint32_t vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u), i, c, j;
+        const uint32_t* frames = b.frames + b.track_table[4u * u];
+        int32_t* q = (int32_t*)(b.values + value);
+        float step[4];
+        b.track_table[4u * u + 2u] = value;
         /* Values: differences from the previous key of the same component, then q x step. */
         r = mcd_entropy_decode(L->streams + stream_off, vbytes, dims, q, count * dims);
         if (r != MCD_OK) return MCD_ERROR_MALFORMED;
@@ -284,11 +294,10 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
         /* Seek: per 32-frame block, the last key at or before its first frame. */
         for (j = 0, i = 0; j < L->seek_len; ++j) {
             uint32_t f = j << SEEK_SHIFT;
-            while (i + 1u < count && b.frames[first + i + 1u] <= f) ++i;
+            while (i + 1u < count && frames[i + 1u] <= f) ++i;
             b.seek[(size_t)u * L->seek_len + j] = i;
         }
         stream_off += vbytes;
-        first += count;
         value += count * dims;
         d += desc_size(kind);
     }

@@ -53,6 +53,11 @@ class RMASettings:
         Rounds of check-through-the-runtime and budget tightening before giving up.
     shell_cm : float, default 3.0
         Every rotation is also held to a virtual vertex this far from its joint.
+    key_grid : int or None, default None
+        Keys prefer multiples of this many frames, so key times cost fewer bits (a key time is
+        coded as its grid cell and its offset in the cell, almost always 0); 1 ... 8. None:
+        4 when every node's tolerance is at least 0.25 cm, else 1 (measured: the grid saves
+        8 % at 1 cm and 4 % at 0.3 cm, and costs 8-13 % at 0.1-0.02 cm, where keys are dense).
     """
 
     tolerance: Tolerance
@@ -60,6 +65,7 @@ class RMASettings:
     budget_scales: tuple[float, ...] = (6.0,)
     max_repairs: int = 60
     shell_cm: float = 3.0
+    key_grid: int | None = None
 
     def __post_init__(self) -> None:
         self.quant_fraction = float(self.quant_fraction)
@@ -69,6 +75,14 @@ class RMASettings:
             self.budget_scales = (float(self.budget_scales),)
         self.budget_scales = tuple(float(x) for x in self.budget_scales)
         self.max_repairs = int(self.max_repairs)
+        if self.key_grid is None:
+            tightest = self.tolerance.tolerance_cm
+            if self.tolerance.effector_tolerance_cm is not None:
+                tightest = min(tightest, self.tolerance.effector_tolerance_cm)
+            self.key_grid = 4 if tightest >= 0.25 else 1
+        self.key_grid = int(self.key_grid)
+        if not 1 <= self.key_grid <= 8:
+            raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
 
 
 def _align(n: int, a: int) -> int:
@@ -80,8 +94,9 @@ def section_prefix(clip_count: int) -> bytes:
     return struct.pack("<IIII", clip_count, 0, 0, 0)
 
 
-def serialize(motion: Motion, tracks: list[_Track]) -> bytes:
-    """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it)."""
+def serialize(motion: Motion, tracks: list[_Track], grid_of: int = 1) -> bytes:
+    """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it); ``grid_of``
+    is the key grid the tracks were fitted on."""
     sk = motion.skeleton
     rows, constants, animated = node_modes(motion, tracks)
     modes = bytes(rm | (tm << 2) for rm, tm, _, _ in rows).ljust(_align(sk.node_count, 4), b"\0")
@@ -95,17 +110,21 @@ def serialize(motion: Motion, tracks: list[_Track]) -> bytes:
         step = t.quantizer.step
         # One step for the three MRP or translation components (and a twist's own angle step).
         assert np.all(step[-3:] == step[-1]), "the format stores one step per track"
+        grid = grid_of
         if t.is_rotation:
-            desc = struct.pack("<BB3hIIf", t.kind, 0, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
+            desc = struct.pack("<BB3hIIf", t.kind, grid, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
         else:
-            desc = struct.pack("<BBHIIf", t.kind, 0, 0, len(t.keys), len(stream), step[-1])
+            desc = struct.pack("<BBHIIf", t.kind, grid, 0, len(t.keys), len(stream), step[-1])
         if t.kind == KIND_TWIST:
             desc += struct.pack("<3hHf", *t.axis_codes.tolist(), 0, step[0])
         descs.append(desc)
         streams.append(stream)
-        gaps.append(np.diff(t.keys) - 1)
+        # Interior keys as (grid cells since the previous key's cell, offset in the cell); the
+        # first (0) and last (F - 1) keys are implied.
+        inner = t.keys[1:-1]
+        gaps.append(np.stack((np.diff(inner // grid, prepend=0), inner % grid), axis=1).ravel())
         keys += len(t.keys)
-    gap_stream = entropy_encode(np.concatenate(gaps)) if gaps else b""
+    gap_stream = entropy_encode(np.concatenate(gaps).astype(np.int64), channels=2) if gaps else b""
     body = b"".join([modes, np.asarray(constants, dtype="<f4").tobytes(), *descs, gap_stream, *streams])
     size = _align(PAYLOAD_HEADER + len(body), 4)
     header = struct.pack("<IIIIIIII", size, motion.frame_count, sk.node_count, len(animated),
@@ -141,11 +160,15 @@ class _RMAFitter(_ClipFitter):
 
     quantizer_for = staticmethod(StepQuantizer.for_range)
 
+    def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings) -> None:
+        super().__init__(motion, cm_per_unit, settings)  # type: ignore[arg-type]
+        self.key_grid = settings.key_grid
+
     def _mandatory_keys(self) -> np.ndarray:
         return np.unique([0, self.frames - 1])
 
     def _payload(self, tracks: list[_Track]) -> bytes:
-        return serialize(self.motion, tracks)
+        return serialize(self.motion, tracks, self.key_grid)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,

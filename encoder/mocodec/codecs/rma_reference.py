@@ -42,15 +42,18 @@ def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[n
                 a = np.frombuffer(payload, "<i2", 3, pos + 20).astype(np.float64)
                 axis = a / np.linalg.norm(a)
                 step[0] = struct.unpack_from("<f", payload, pos + 28)[0]
-        descs.append((kind, d, count, vbytes, step, ref, axis))
+        descs.append((kind, d, count, vbytes, step, ref, axis, payload[pos + 1]))
         pos += _DESC_SIZE[kind]
-    gaps = entropy_decode(payload[pos:pos + gap_bytes], keys - tracks).astype(np.int64)
+    interior = sum(max(count - 2, 0) for _, _, count, *_ in descs)
+    gaps = entropy_decode(payload[pos:pos + gap_bytes], 2 * interior, 2).astype(np.int64).reshape(-1, 2)
     pos += gap_bytes
     x = np.asarray(x, dtype=np.float64)
     values, g = [], 0
-    for kind, d, count, vbytes, step, _, _ in descs:
-        frames_k = np.concatenate(([0], np.cumsum(gaps[g:g + count - 1] + 1)))
-        g += count - 1
+    for kind, d, count, vbytes, step, _, _, grid in descs:
+        cells = gaps[g:g + max(count - 2, 0)]
+        inner = grid * np.cumsum(cells[:, 0]) + cells[:, 1]
+        g += max(count - 2, 0)
+        frames_k = np.concatenate(([0], inner, [frames - 1] if count > 1 else []))
         q = np.cumsum(entropy_decode(payload[pos:pos + vbytes], count * d, d).reshape(count, d), axis=0)
         pos += vbytes
         v = (q.astype(np.float32) * step).astype(np.float64)  # binary32 product, as specified
@@ -66,7 +69,7 @@ def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[n
             rot[:, i] = consts[ci:ci + 4]
             ci += 4
         elif rm == 2:
-            kind, _, _, _, _, ref, axis = descs[track]
+            kind, _, _, _, _, ref, axis, _ = descs[track]
             rot[:, i] = track_rotation(kind, ref, axis, values[track])
             track += 1
         if tm == 1:

@@ -203,9 +203,10 @@ def _constant_value(track: _Track) -> np.ndarray:
 
 
 def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
-         quantizer_for: Callable[..., Quantizer] = Quantizer.for_range) -> None:
+         quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
-    ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule)."""
+    ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
+    ``grid`` the frames new keys prefer (``fit_keys``)."""
     err = _track_error(track)
     frames = len(track.values)
     if track.kind != KIND_TWIST:
@@ -224,7 +225,7 @@ def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
-                                        start=track.keys)
+                                        start=track.keys, grid=grid)
         track.keys, track.key_values, track.quantizer = keys, key_values, qz
         if ok:
             track.fit_error = err(_track_values(track))
@@ -423,6 +424,7 @@ class _ClipFitter:
     """
 
     quantizer_for = staticmethod(Quantizer.for_range)
+    key_grid = 1  # SPLN codes key frames as they are
 
     def _mandatory_keys(self) -> np.ndarray:
         """Frames every track keys: the block starts of the SPLN layout."""
@@ -533,7 +535,7 @@ class _ClipFitter:
             if key in tracks:
                 t = tracks[key]
                 if key in refit or t.keys is None and t.constant is None:
-                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for)
+                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
                 local_t = _track_recon(t)
             else:
                 local_t = np.broadcast_to(_f32_exact(sk.offsets[i]), (self.frames, 3))
@@ -548,7 +550,7 @@ class _ClipFitter:
                 if key in refit or parent_moved or t.target is None:
                     target = self._rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
                     _retarget(t, target, self.motion, i)
-                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for)
+                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
                 local_q = _track_recon(t)
             elif self.has_rot[i]:
                 local_q = self.motion.rotations[:, i]  # exactly identity on every frame
