@@ -334,7 +334,7 @@ void test_contacts_flag_semantics(void) {
     /* The same asset with the CNTC section renamed to an unknown kind: the runtime skips it. */
     stripped = (uint8_t*)malloc(c.file.size);
     memcpy(stripped, c.file.data, c.file.size);
-    memcpy(stripped + c.entry, "XXXX", 4);
+    memcpy(stripped + c.entry, "UNKN", 4);
     mcd_test_fix_crc(stripped, c.file.size);
     CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, NULL, 0, &a), MCD_OK);
     CHECK_RESULT(mcd_open(stripped, c.file.size, 0, NULL, 0, &plain), MCD_OK);
