@@ -248,35 +248,38 @@ static mcd_result decode_band(const layout* L, uint32_t b, const uint8_t* stream
     return MCD_OK;
 }
 
-/* Undo one level: s = rows [0, ns), d = rows [ns, ns + nd), C floats per row. */
+/* One lifting step on the even rows: s[k] -= w (d[k-1] + d[k]), d[-1] = d[0], d[nd] = d[nd-1]. */
+static void lift_even(float* s, const float* d, uint32_t ns, uint32_t nd, uint32_t C, float w) {
+    uint32_t k, c;
+    for (k = 0; k < ns; ++k) {
+        const float* dl = d + (size_t)(k > 0u ? k - 1u : 0u) * C;
+        const float* dr = d + (size_t)(k < nd ? k : nd - 1u) * C;
+        for (c = 0; c < C; ++c) s[(size_t)k * C + c] -= w * (dl[c] + dr[c]);
+    }
+}
+
+/* One lifting step on the odd rows: d[k] -= w (s[k] + s[k+1]), s[ns] = s[ns-1]. */
+static void lift_odd(const float* s, float* d, uint32_t ns, uint32_t nd, uint32_t C, float w) {
+    uint32_t k, c;
+    for (k = 0; k < nd; ++k) {
+        const float* sl = s + (size_t)k * C;
+        const float* sr = s + (size_t)(k + 1u < ns ? k + 1u : ns - 1u) * C;
+        for (c = 0; c < C; ++c) d[(size_t)k * C + c] -= w * (sl[c] + sr[c]);
+    }
+}
+
+/* Undo one level: s = rows [0, ns), d = rows [ns, ns + nd), C floats per row. The boundary
+ * rules above are the whole-sample symmetric extension. */
 static void inverse_lifting(float* s, float* d, uint32_t ns, uint32_t nd, uint32_t C) {
     uint32_t k, c;
     for (k = 0; k < ns; ++k)
         for (c = 0; c < C; ++c) s[(size_t)k * C + c] *= k_scale;
     for (k = 0; k < nd; ++k)
         for (c = 0; c < C; ++c) d[(size_t)k * C + c] *= k_inv_scale;
-    /* s[k] uses d[k-1] and d[k] (d[-1] = d[0], d[nd] = d[nd-1]); d[k] uses s[k], s[k+1]
-     * (s[ns] = s[ns-1]): the whole-sample symmetric extension. */
-    for (k = 0; k < ns; ++k) {
-        const float* dl = d + (size_t)(k > 0u ? k - 1u : 0u) * C;
-        const float* dr = d + (size_t)(k < nd ? k : nd - 1u) * C;
-        for (c = 0; c < C; ++c) s[(size_t)k * C + c] -= k_delta * (dl[c] + dr[c]);
-    }
-    for (k = 0; k < nd; ++k) {
-        const float* sl = s + (size_t)k * C;
-        const float* sr = s + (size_t)(k + 1u < ns ? k + 1u : ns - 1u) * C;
-        for (c = 0; c < C; ++c) d[(size_t)k * C + c] -= k_gamma * (sl[c] + sr[c]);
-    }
-    for (k = 0; k < ns; ++k) {
-        const float* dl = d + (size_t)(k > 0u ? k - 1u : 0u) * C;
-        const float* dr = d + (size_t)(k < nd ? k : nd - 1u) * C;
-        for (c = 0; c < C; ++c) s[(size_t)k * C + c] -= k_beta * (dl[c] + dr[c]);
-    }
-    for (k = 0; k < nd; ++k) {
-        const float* sl = s + (size_t)k * C;
-        const float* sr = s + (size_t)(k + 1u < ns ? k + 1u : ns - 1u) * C;
-        for (c = 0; c < C; ++c) d[(size_t)k * C + c] -= k_alpha * (sl[c] + sr[c]);
-    }
+    lift_even(s, d, ns, nd, C, k_delta);
+    lift_odd(s, d, ns, nd, C, k_gamma);
+    lift_even(s, d, ns, nd, C, k_beta);
+    lift_odd(s, d, ns, nd, C, k_alpha);
     for (k = 0; k < (ns + nd) * C; ++k) s[k] = clampf(s[k]);
 }
 
