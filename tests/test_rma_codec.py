@@ -93,8 +93,7 @@ def test_resident_memory_is_what_the_format_says(library):
     assert offsets == list(np.cumsum([0] + [resident_bytes(p) for p in payloads[:-1]]))
 
 
-def test_c_runtime_and_python_reference_agree(library):
-    motions, result = library
+def _assert_c_matches_reference(result, motions) -> None:
     asset = Asset(result.asset)
     for (_, payload), m, info in zip(_payloads(result.asset), motions, asset.clips):
         x = np.concatenate((np.arange(m.frame_count), np.linspace(0, m.frame_count - 1, 613)))
@@ -104,6 +103,38 @@ def test_c_runtime_and_python_reference_agree(library):
         sign = np.sign(np.sum(rot_c * rot_py, axis=-1, keepdims=True))
         assert np.abs(rot_c - sign * rot_py).max() <= 1e-5
         assert np.abs(trans_c - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
+
+
+def _first_descriptor(payload: bytes) -> int:
+    nodes, consts = struct.unpack_from("<I", payload, 8)[0], struct.unpack_from("<I", payload, 16)[0]
+    return 32 + (nodes + 3) // 4 * 4 + 4 * consts
+
+
+def _descriptor_byte1(payload: bytes) -> list[int]:
+    """Byte 1 of every track descriptor: key grid | predictor << 4."""
+    tracks = struct.unpack_from("<I", payload, 12)[0]
+    pos = _first_descriptor(payload)
+    out = []
+    for _ in range(tracks):
+        out.append(payload[pos + 1])
+        pos += {1: 20, 2: 32, 3: 16}[payload[pos]]
+    return out
+
+
+def test_c_runtime_and_python_reference_agree(library):
+    motions, result = library
+    _assert_c_matches_reference(result, motions)
+
+
+def test_slope_predictors_are_chosen_and_decode_alike_in_c_and_python(sample_paths):
+    # Tight tolerances give dense keys, where carrying the slope over predicts best.
+    motions = [read_bvh(p) for p in sample_paths[:1]]
+    result = _encode(motions, 0.05)
+    (_, payload), = _payloads(result.asset)
+    predictors = {b >> 4 for b in _descriptor_byte1(payload)}
+    assert predictors <= {0, 1, 2} and predictors & {1, 2}
+    _assert_c_matches_reference(result, motions)
+    assert _error_cm(Asset(result.asset), motions[0]).max() <= 0.05
 
 
 def test_sequential_and_random_access_give_identical_poses(library):
@@ -157,6 +188,8 @@ def test_inconsistent_payloads_are_rejected_at_open(library):
         "resident offset not a multiple of 16": (start + 24, struct.pack("<I", resident_offset + 4)),
         "key total that the tracks do not add up to": (start + 20, struct.pack("<I", key_total + 1)),
         "gap stream size moved into the value streams": (start + 28, struct.pack("<I", gap_bytes + 1)),
+        "value predictor 3 (undefined)": (start + _first_descriptor(payload) + 1,
+                                          bytes([_descriptor_byte1(payload)[0] & 15 | 3 << 4])),
     }
     for why, (at, new) in cases.items():
         with pytest.raises(RuntimeResultError):
@@ -207,12 +240,7 @@ def test_key_grid_is_stored_and_the_tolerance_holds(sample_paths, grid):
     m = read_bvh(sample_paths[0])
     result = _encode([m], 1.0, key_grid=grid)
     (_, payload), = _payloads(result.asset)
-    nodes, tracks, consts = struct.unpack_from("<III", payload, 8)[0], *struct.unpack_from("<II", payload, 12)
-    pos = 32 + (nodes + 3) // 4 * 4 + 4 * consts
-    grids = []
-    for _ in range(tracks):
-        grids.append(payload[pos + 1])
-        pos += {1: 20, 2: 32, 3: 16}[payload[pos]]
+    grids = [b & 15 for b in _descriptor_byte1(payload)]
     assert set(grids) == {grid}
     assert _error_cm(Asset(result.asset), m).max() <= 1.0
 

@@ -20,6 +20,7 @@
 #define MAX_Q 16777216 /* |q| <= 2^24: q x step is exact in binary32 */
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3 };
+enum { PREDICT_PREVIOUS = 0, PREDICT_HALF_SLOPE = 1, PREDICT_SLOPE = 2 };
 
 static size_t align4z(size_t x) {
     return (x + 3u) & ~(size_t)3u;
@@ -29,7 +30,7 @@ static size_t align16z(size_t x) {
     return (x + 15u) & ~(size_t)15u;
 }
 
-/* Descriptor: u8 kind, u8 0, then i16 reference[3] (rotations) or u16 0 (translation), u32
+/* Descriptor: u8 kind, u8 key grid | predictor << 4, then i16 reference[3] (rotations) or u16 0 (translation), u32
  * key_count, u32 value_bytes, f32 step (one for all components; a twist's MRPs), and for a
  * twist i16 axis[3], u16 0, f32 angle step. */
 static uint32_t desc_size(uint32_t kind) {
@@ -123,7 +124,9 @@ static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
             size = desc_size(kind);
             if (size == 0 || end + off + size > L->size) return MCD_ERROR_MALFORMED;
             if ((kind == KIND_TRANSLATION) != (pass == 1u)) return MCD_ERROR_MALFORMED;
-            if (d[1] < 1u || d[1] > 8u || (kind == KIND_TRANSLATION && mcd_rd_u16(d + 2))) return MCD_ERROR_MALFORMED;
+            /* Byte 1: key grid (1 ... 8) in the low nibble, value predictor (0 ... 2) above. */
+            if ((d[1] & 15u) < 1u || (d[1] & 15u) > 8u || (d[1] >> 4) > PREDICT_SLOPE) return MCD_ERROR_MALFORMED;
+            if (kind == KIND_TRANSLATION && mcd_rd_u16(d + 2)) return MCD_ERROR_MALFORMED;
             dims = kind_dims(kind);
             count = mcd_rd_u32(d + desc_counts(kind));
             vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u);
@@ -229,6 +232,23 @@ static void block_views(uint8_t* block, const layout* L, clip_block* b) {
     b->seek = (uint32_t*)q;
 }
 
+/* The prediction of key i's component c from the keys before it, already decoded in q: the
+ * previous key, plus (predictor 1) half or (2) all of the slope of the two keys before,
+ * carried over the gap to key i, rounded half up in integers. Frames increase strictly
+ * (checked when they were decoded) and |q| <= 2^24, gaps < 2^32: products stay below 2^60. */
+static int64_t predict(const int32_t* q, const uint32_t* frames, uint32_t i, uint32_t dims, uint32_t c,
+                       uint32_t predictor) {
+    int64_t prev, num, den, n2;
+    if (i == 0) return 0;
+    prev = q[(i - 1u) * dims + c];
+    if (i < 2u || predictor == PREDICT_PREVIOUS) return prev;
+    num = (prev - q[(i - 2u) * dims + c]) * (int64_t)(frames[i] - frames[i - 1u]) * (int64_t)predictor;
+    den = 2 * (int64_t)(frames[i - 1u] - frames[i - 2u]);
+    n2 = 2 * num + den;
+    /* Floor division (C truncates toward zero). */
+    return prev + (n2 >= 0 ? n2 / (2 * den) : -((-n2 + 2 * den - 1) / (2 * den)));
+}
+
 static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* block) {
     clip_block b;
     uint32_t u, first = 0, value = 0, gap_pos = 0;
@@ -248,7 +268,7 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
     r = mcd_entropy_decode(L->gaps, L->gap_bytes, 2u, gaps, 2u * L->interior);
     if (r != MCD_OK) return MCD_ERROR_MALFORMED;
     for (u = 0, d = L->descs; u < L->tracks; ++u) {
-        uint32_t kind = d[0], grid = d[1], count = mcd_rd_u32(d + desc_counts(kind)), i;
+        uint32_t kind = d[0], grid = d[1] & 15u, count = mcd_rd_u32(d + desc_counts(kind)), i;
         uint64_t cell = 0, frame = 0;
         b.track_table[4u * u] = first;
         b.track_table[4u * u + 1u] = count;
@@ -275,18 +295,16 @@ static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* b
         int32_t* q = (int32_t*)(b.values + value);
         float step[4];
         b.track_table[4u * u + 2u] = value;
-        /* Values: differences from the previous key of the same component, then q x step. */
+        /* Values: residuals from each key's prediction (docs/FORMAT.md), then q x step. */
         r = mcd_entropy_decode(L->streams + stream_off, vbytes, dims, q, count * dims);
         if (r != MCD_OK) return MCD_ERROR_MALFORMED;
         desc_steps(d, kind, step);
-        for (c = 0; c < dims; ++c) {
-            int64_t acc = 0;
+        for (c = 0; c < dims; ++c)
             for (i = 0; i < count; ++i) {
-                acc += q[i * dims + c];
-                if (acc > MAX_Q || acc < -MAX_Q) return MCD_ERROR_MALFORMED;
-                q[i * dims + c] = (int32_t)acc;
+                int64_t v = predict(q, frames, i, dims, c, (uint32_t)d[1] >> 4) + q[i * dims + c];
+                if (v > MAX_Q || v < -MAX_Q) return MCD_ERROR_MALFORMED;
+                q[i * dims + c] = (int32_t)v;
             }
-        }
         for (i = 0; i < count * dims; ++i) {
             b.values[value + i] = (float)q[i] * step[i % dims];
             if (!mcd_in_bounds(b.values[value + i])) return MCD_ERROR_MALFORMED;

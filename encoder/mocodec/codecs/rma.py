@@ -94,6 +94,26 @@ def section_prefix(clip_count: int) -> bytes:
     return struct.pack("<IIII", clip_count, 0, 0, 0)
 
 
+# Key value predictors (descriptor byte 1, bits 4-5): the previous key, or the previous key
+# plus half / all of the slope of the two keys before, carried over the gap to this key. Dense
+# keys (tight tolerances) follow the slope; sparse ones do not, so each track picks its own.
+PREDICT_PREVIOUS, PREDICT_HALF_SLOPE, PREDICT_SLOPE = 0, 1, 2
+
+
+def key_residuals(q: np.ndarray, frames: np.ndarray, predictor: int) -> np.ndarray:
+    """Lattice integers ``q`` (K, d) of keys at ``frames`` (K,) minus their prediction, in
+    integers only (docs/FORMAT.md gives the rounding the runtime repeats)."""
+    q = np.asarray(q, dtype=np.int64)
+    out = np.diff(q, axis=0, prepend=np.zeros((1, q.shape[1]), dtype=np.int64))
+    if predictor == PREDICT_PREVIOUS or len(q) < 3:
+        return out
+    f = np.asarray(frames, dtype=np.int64)
+    num = (q[1:-1] - q[:-2]) * ((f[2:] - f[1:-1]) * predictor)[:, None]
+    den = (2 * (f[1:-1] - f[:-2]))[:, None]
+    out[2:] = q[2:] - (q[1:-1] + (2 * num + den) // (2 * den))
+    return out
+
+
 def serialize(motion: Motion, tracks: list[_Track], grid_of: int = 1) -> bytes:
     """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it); ``grid_of``
     is the key grid the tracks were fitted on."""
@@ -105,16 +125,19 @@ def serialize(motion: Motion, tracks: list[_Track], grid_of: int = 1) -> bytes:
     for t in animated:
         d = DIMS[t.kind]
         q = t.quantizer.encode(t.key_values)
-        residual = np.diff(q, axis=0, prepend=np.zeros((1, d), dtype=np.int64))
-        stream = entropy_encode(residual.ravel(), channels=d)
+        options = [entropy_encode(key_residuals(q, t.keys, p).ravel(), channels=d)
+                   for p in (PREDICT_PREVIOUS, PREDICT_HALF_SLOPE, PREDICT_SLOPE)]
+        predictor = int(np.argmin([len(o) for o in options]))
+        stream = options[predictor]
         step = t.quantizer.step
         # One step for the three MRP or translation components (and a twist's own angle step).
         assert np.all(step[-3:] == step[-1]), "the format stores one step per track"
         grid = grid_of
+        byte1 = grid | predictor << 4
         if t.is_rotation:
-            desc = struct.pack("<BB3hIIf", t.kind, grid, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
+            desc = struct.pack("<BB3hIIf", t.kind, byte1, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
         else:
-            desc = struct.pack("<BBHIIf", t.kind, grid, 0, len(t.keys), len(stream), step[-1])
+            desc = struct.pack("<BBHIIf", t.kind, byte1, 0, len(t.keys), len(stream), step[-1])
         if t.kind == KIND_TWIST:
             desc += struct.pack("<3hHf", *t.axis_codes.tolist(), 0, step[0])
         descs.append(desc)

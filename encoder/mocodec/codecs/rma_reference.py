@@ -19,6 +19,19 @@ from .spline_reference import track_rotation
 _DESC_SIZE = {1: 20, 2: 32, 3: 16}
 
 
+def _values(residual: np.ndarray, frames: np.ndarray, predictor: int) -> np.ndarray:
+    """Key lattice integers from their residuals, key by key as FORMAT.md states it."""
+    q = np.zeros(residual.shape, dtype=np.int64)
+    for i in range(len(q)):
+        pred = q[i - 1] if i else 0
+        if i >= 2 and predictor:
+            num = (q[i - 1] - q[i - 2]) * (frames[i] - frames[i - 1]) * predictor
+            den = 2 * (frames[i - 1] - frames[i - 2])
+            pred = q[i - 1] + (2 * num + den) // (2 * den)
+        q[i] = pred + residual[i]
+    return q
+
+
 def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local rotations (len(x), N, 4) and translations (len(x), N, 3) at frame positions x."""
     size, frames, nodes, tracks, nconst, keys, _, gap_bytes = struct.unpack_from("<8I", payload)
@@ -49,12 +62,14 @@ def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[n
     pos += gap_bytes
     x = np.asarray(x, dtype=np.float64)
     values, g = [], 0
-    for kind, d, count, vbytes, step, _, _, grid in descs:
+    for kind, d, count, vbytes, step, _, _, byte1 in descs:
+        grid, predictor = byte1 & 15, byte1 >> 4
         cells = gaps[g:g + max(count - 2, 0)]
         inner = grid * np.cumsum(cells[:, 0]) + cells[:, 1]
         g += max(count - 2, 0)
         frames_k = np.concatenate(([0], inner, [frames - 1] if count > 1 else []))
-        q = np.cumsum(entropy_decode(payload[pos:pos + vbytes], count * d, d).reshape(count, d), axis=0)
+        q = _values(entropy_decode(payload[pos:pos + vbytes], count * d, d).reshape(count, d),
+                    frames_k.astype(np.int64), predictor)
         pos += vbytes
         v = (q.astype(np.float32) * step).astype(np.float64)  # binary32 product, as specified
         values.append(catmull_rom(frames_k, v, x))
