@@ -3,9 +3,10 @@ IK, every node's error with IK applied, and the bytes of the CNTC section.
 
     python bench/bench_contacts.py --codec rma --tolerance 1 --clips 02_01 07_01 07_04 09_01 06_10
 
-Each clip is encoded twice (without and with ``--contacts``); contact frames are those the
-encoder's detector finds on the original (mocodec.contacts.detect_contacts). Writes
-``bench/results/contacts_<codec>.md``.
+Each clip is encoded three times: without and with ``--contacts``, and (the other way to keep
+feet within 0.5 cm) without contacts but with ``--effector-tolerance 0.5``, which holds hands,
+feet and head to 0.5 cm on every frame. Contact frames are those the encoder's detector finds
+on the original (mocodec.contacts.detect_contacts). Writes ``bench/results/contacts_<codec>.md``.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from mocodec.units import resolve_units  # noqa: E402
 
 DEV = HERE.parents[1] / "shared" / "data" / "cmu"
 SAMPLES = HERE.parent / "encoder" / "mocodec" / "samples"
+EFFECTOR_CM = 0.5
 
 
 def measure(path: Path, codec: str, tol: float) -> dict:
@@ -38,12 +40,14 @@ def measure(path: Path, codec: str, tol: float) -> dict:
     masks = C.detect_contacts(m.skeleton, pos, m.frame_rate, cm)
     plain = encode_motions([m], units, codec, Tolerance(tol))
     with_c = encode_motions([m], units, codec, Tolerance(tol), contacts=True)
+    tight = encode_motions([m], units, codec, Tolerance(tol, EFFECTOR_CM))
     asset = Asset(with_c.asset)
     out = {"clip": m.name, "frames": m.frame_count, "plain_bytes": len(plain.asset),
-           "contacts_bytes": len(with_c.asset),
+           "contacts_bytes": len(with_c.asset), "effector_bytes": len(tight.asset),
            "contact_frames": int(sum(int(v.sum()) for v in masks.values()))}
-    for key, flag in (("before", False), ("after", True)):
-        _, got = asset.sample_frames(m.name, world=True, contacts=flag)
+    for key, a, flag in (("before", asset, False), ("after", asset, True),
+                         ("effector", Asset(tight.asset), False)):
+        _, got = a.sample_frames(m.name, world=True, contacts=flag)
         err = np.linalg.norm(got - pos, axis=-1) * cm
         feet = np.concatenate([err[mask, n] for n, mask in masks.items()]) if masks else np.zeros(1)
         out[f"foot_max_{key}"] = float(feet.max())
@@ -68,14 +72,17 @@ def main() -> int:
     lines = [f"Contact IK, codec `{args.codec}`, tolerance {args.tolerance:g} cm "
              "(foot = foot/toe joints on the original's contact frames; errors in cm)", "",
              "| clip | frames | contact samples | bytes without | bytes with | foot max before → after | "
-             "foot mean before → after | share > 0.5 cm after | every node max with IK |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "foot mean before → after | share > 0.5 cm after | every node max with IK | "
+             f"bytes with --effector-tolerance {EFFECTOR_CM:g}, no contacts | its foot max / mean |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['clip']} | {r['frames']} | {r['contact_frames']} | {r['plain_bytes']:,} | "
                      f"{r['contacts_bytes']:,} (+{100 * (r['contacts_bytes'] / r['plain_bytes'] - 1):.1f} %) | "
                      f"{r['foot_max_before']:.3f} → {r['foot_max_after']:.3f} | "
                      f"{r['foot_mean_before']:.3f} → {r['foot_mean_after']:.3f} | "
-                     f"{100 * r['foot_over_half_cm_after']:.1f} % | {r['all_max_after']:.4f} |")
+                     f"{100 * r['foot_over_half_cm_after']:.1f} % | {r['all_max_after']:.4f} | "
+                     f"{r['effector_bytes']:,} (+{100 * (r['effector_bytes'] / r['plain_bytes'] - 1):.1f} %) | "
+                     f"{r['foot_max_effector']:.3f} / {r['foot_mean_effector']:.3f} |")
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / f"contacts_{args.codec}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
