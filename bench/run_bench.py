@@ -29,7 +29,7 @@ import acl_reference  # noqa: E402
 from mocodec.encode import encode_motions  # noqa: E402
 from mocodec.io import read_bvh  # noqa: E402
 from mocodec.metrics import combine  # noqa: E402
-from mocodec.tolerance import Tolerance  # noqa: E402
+from mocodec.tolerance import Tolerance, effector_nodes  # noqa: E402
 from mocodec.units import resolve_units  # noqa: E402
 
 DEV_SET = REPO.parent / "shared" / "data" / "cmu"
@@ -61,8 +61,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=15, help="speed passes per mode; the median is kept")
     ap.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="codec setting (JSON value), as for `mocodec encode -O`")
+    ap.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
+                    help="tighter bound for hands, feet, head and end sites (as `mocodec encode`); "
+                         "the results are then written as <codec>_effector<CM>.json / .md")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     args = ap.parse_args(argv)
+    stem = args.codec if args.effector_tolerance is None else f"{args.codec}_effector{args.effector_tolerance:g}"
 
     args.out.mkdir(parents=True, exist_ok=True)
     paths = sorted(args.data.glob("*.bvh"))
@@ -82,10 +86,10 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for tol in args.tolerances:
         started = time.perf_counter()
-        result = encode_motions(motions, units, args.codec, Tolerance(tol), options,
+        result = encode_motions(motions, units, args.codec, Tolerance(tol, args.effector_tolerance), options,
                                 progress=lambda n: print(f"  {tol} cm: {n}", file=sys.stderr))
         seconds = time.perf_counter() - started
-        asset_path = args.out / f"{args.codec}_{tol:g}cm.mcd"
+        asset_path = args.out / f"{stem}_{tol:g}cm.mcd"
         asset_path.write_bytes(result.asset)
         err = combine([c.error for c in result.clips])
         sp = speed(exe, asset_path, args.runs)
@@ -93,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
             "tolerance_cm": tol, "asset_bytes": len(result.asset),
             **{k: result.size.as_dict()[k] for k in ("ratio_bvh", "ratio_acl", "bytes_per_second",
                                                       "raw_bvh_bytes", "raw_acl_bytes", "seconds")},
-            **err, "encode_seconds": seconds, **{k: v for k, v in sp.items() if k.startswith("us_")},
+            **err, **effector_split(motions, result.clips), "encode_seconds": seconds, **{k: v for k, v in sp.items() if k.startswith("us_")},
             "resident_bytes": sp["resident_bytes"], "scratch_bytes": sp["scratch_bytes"],
         }
         if whole_dev_set:
@@ -106,30 +110,52 @@ def main(argv: list[str] | None = None) -> int:
 
     report = {
         "codec": args.codec, "data": str(args.data), "clips": len(motions), "frames": frames,
-        "options": options, "machine": platform.machine(), "python": platform.python_version(),
+        "effector_tolerance_cm": args.effector_tolerance, "options": options, "machine": platform.machine(), "python": platform.python_version(),
         "acl_reference": str(acl_reference.DEFAULT_PATH) if whole_dev_set else None,
         "acl_decode_us_per_pose": acl.decode_us if whole_dev_set else None, "rows": rows,
     }
-    (args.out / f"{args.codec}.json").write_text(json.dumps(report, indent=2))
+    (args.out / f"{stem}.json").write_text(json.dumps(report, indent=2))
     md = markdown(report)
-    (args.out / f"{args.codec}.md").write_text(md)
+    (args.out / f"{stem}.md").write_text(md)
     print(md)
     return 0
+
+
+def effector_split(motions: list, clips: list) -> dict:
+    """Mean and max error of the end effectors (hands, feet, head, end sites) and of every other
+    node, over every frame of every clip: the fidelity goal is effectors at half the inner error."""
+    sums = {"effector": [0.0, 0, 0.0], "inner": [0.0, 0, 0.0]}  # sum of errors, samples, max
+    for m, c in zip(motions, clips):
+        eff = effector_nodes(m.skeleton)
+        for key, mask in (("effector", eff), ("inner", ~eff)):
+            if mask.any():
+                sums[key][0] += float(c.error.per_node_mean_cm[mask].sum()) * m.frame_count
+                sums[key][1] += int(mask.sum()) * m.frame_count
+                sums[key][2] = max(sums[key][2], float(c.error.per_node_max_cm[mask].max()))
+    out = {}
+    for key, (total, n, mx) in sums.items():
+        out[f"{key}_mean_cm"] = total / n if n else 0.0
+        out[f"{key}_max_cm"] = mx
+    return out
 
 
 def markdown(report: dict) -> str:
     acl = report["acl_reference"] is not None
     head = ["tolerance cm", "bytes", "B/s", "ratio BVH f32", "ratio ACL 40B", "max cm", "p99 cm",
-            "mean cm", "encode s", "µs/pose seq", "µs/pose random", "µs world seq", "resident B"]
+            "mean cm", "effector / inner mean cm", "encode s", "µs/pose seq", "µs/pose random",
+            "µs world seq", "resident B"]
     if acl:
         head += ["ACL bytes at same max err", "ours / ACL"]
-    lines = [f"`{report['codec']}` on {report['clips']} clips ({report['frames']:,} frames) from "
+    eff = report.get("effector_tolerance_cm")
+    lines = [f"`{report['codec']}`{f' (effector tolerance {eff:g} cm)' if eff else ''} on {report['clips']} clips ({report['frames']:,} frames) from "
              f"`{report['data']}`, options {json.dumps(report['options'])}", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in report["rows"]:
         cells = [f"{r['tolerance_cm']:g}", f"{r['asset_bytes']:,}", f"{r['bytes_per_second']:,.0f}",
                  f"{r['ratio_bvh']:.1f}", f"{r['ratio_acl']:.1f}", f"{r['max_cm']:.4f}",
-                 f"{r['p99_cm']:.4f}", f"{r['mean_cm']:.4f}", f"{r['encode_seconds']:.0f}",
+                 f"{r['p99_cm']:.4f}", f"{r['mean_cm']:.4f}",
+                 f"{r['effector_mean_cm']:.3f} / {r['inner_mean_cm']:.3f}" if "effector_mean_cm" in r else "—",
+                 f"{r['encode_seconds']:.0f}",
                  f"{r['us_per_pose_local_sequential']:.2f}", f"{r['us_per_pose_local_random']:.2f}",
                  f"{r['us_per_pose_world_sequential']:.2f}", f"{r['resident_bytes']:,}"]
         if acl:
