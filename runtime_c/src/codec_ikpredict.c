@@ -23,7 +23,7 @@
 
 #define HEADER 48u
 #define NODE_RECORD 32u
-#define BLOCK_ENTRY 12u
+#define BLOCK_ENTRY 16u
 #define MAX_FRAMES (1u << 24)
 #define MAX_BLOCK_FRAMES 4096u
 #define MAX_CHAINS 16u
@@ -41,9 +41,9 @@ enum { TRANS_REST = 0, TRANS_CODED = 1 };
 
 typedef struct layout {
     uint32_t frames, nodes, block_frames, blocks, joints, tracks, chains, chain_total, flags;
-    uint32_t stream_bytes;
+    uint32_t stream_bytes, coded; /* coded frames G; when G < F the gap table places them */
     float k, eff_step, trans_step;
-    const uint8_t *node_table, *chain_len, *chain_nodes, *block_table, *streams;
+    const uint8_t *node_table, *chain_len, *chain_nodes, *gaps, *block_table, *streams;
     size_t head_size, size;
     const uint8_t* skel; /* skeleton records: parent at +16 + 32 i, rest offset at +24 + 32 i */
 } layout;
@@ -92,16 +92,21 @@ static int read_head(const uint8_t* p, size_t avail, layout* L) {
     L->trans_step = mcd_rd_f32(p + 32);
     L->flags = p[36];
     L->stream_bytes = mcd_rd_u32(p + 40);
+    L->coded = mcd_rd_u32(p + 44);
     if (L->frames < 1u || L->frames > MAX_FRAMES || L->nodes < 1u || L->nodes > MCD_MAX_NODES) return 0;
     if (L->block_frames < 1u || L->block_frames > MAX_BLOCK_FRAMES) return 0;
+    if (L->coded < 1u || L->coded > L->frames) return 0;
     if (L->chains > MAX_CHAINS || L->chain_total > MAX_CHAIN_TOTAL) return 0;
-    L->blocks = (L->frames + L->block_frames - 1u) / L->block_frames;
+    L->blocks = (L->coded + L->block_frames - 1u) / L->block_frames;
     off = HEADER + (size_t)NODE_RECORD * L->nodes;
     L->node_table = p + HEADER;
     L->chain_len = p + off;
     off += 2u * (size_t)L->chains;
     L->chain_nodes = p + off;
-    off = align4z(off + 2u * (size_t)L->chain_total);
+    off += 2u * (size_t)L->chain_total;
+    L->gaps = p + off;
+    if (L->coded < L->frames) off += L->coded - 1u; /* u8 frames to the next coded frame */
+    off = align4z(off);
     if (off > avail) return 0;
     L->head_size = off;
     return 1;
@@ -125,7 +130,7 @@ static int read_layout(const uint8_t* p, size_t avail, layout* L) {
 static int check_head(const layout* L, const uint8_t* p) {
     uint32_t i, c, m, joints = 0, tracks = 0, at = 0;
     size_t b;
-    if (p[37] || p[38] || p[39] || mcd_rd_u32(p + 44) != 0 || (L->flags & ~1u) != 0) return 0;
+    if (p[37] || p[38] || p[39] || (L->flags & ~1u) != 0) return 0;
     if (!mcd_finite(L->k) || L->k < 0.0f || L->k > MAX_K) return 0;
     if (!mcd_finite(L->eff_step) || L->eff_step < MIN_STEP || L->eff_step > MAX_STEP) return 0;
     if (!mcd_finite(L->trans_step) || L->trans_step < MIN_STEP || L->trans_step > MAX_STEP) return 0;
@@ -178,9 +183,22 @@ static int check_head(const layout* L, const uint8_t* p) {
         at += len;
     }
     if (at != L->chain_total) return 0;
-    for (b = HEADER + (size_t)NODE_RECORD * L->nodes + 2u * ((size_t)L->chains + L->chain_total); b < L->head_size; ++b)
+    if (L->coded < L->frames) {
+        uint64_t sum = 0;
+        for (c = 0; c + 1u < L->coded; ++c) {
+            if (L->gaps[c] == 0u) return 0;
+            sum += L->gaps[c];
+        }
+        if (sum != L->frames - 1u) return 0;
+    }
+    for (b = (size_t)(L->gaps - p) + (L->coded < L->frames ? L->coded - 1u : 0u); b < L->head_size; ++b)
         if (p[b]) return 0;
     return 1;
+}
+
+/* Frames from coded frame g to coded frame g + 1 (g + 1 < G). */
+static uint32_t gap_after(const layout* L, uint32_t g) {
+    return L->coded < L->frames ? L->gaps[g] : 1u;
 }
 
 /* Frames in block b, and its three streams (effector, angle, translation) with their value
@@ -196,7 +214,7 @@ static int block_info(const layout* L, uint32_t b, block_streams* s) {
     uint32_t off = mcd_rd_u32(e), end, k;
     uint64_t used;
     s->first = b * L->block_frames;
-    s->count = L->frames - s->first < L->block_frames ? L->frames - s->first : L->block_frames;
+    s->count = L->coded - s->first < L->block_frames ? L->coded - s->first : L->block_frames;
     end = b + 1u < L->blocks ? mcd_rd_u32(e + BLOCK_ENTRY) : L->stream_bytes;
     s->bytes[0] = mcd_rd_u32(e + 4);
     s->bytes[1] = mcd_rd_u32(e + 8);
@@ -214,13 +232,23 @@ static int block_info(const layout* L, uint32_t b, block_streams* s) {
     return 1;
 }
 
+/* Frame of block b's intra frame, as its entry says. */
+static uint32_t block_first_frame(const layout* L, uint32_t b) {
+    return mcd_rd_u32(L->block_table + (size_t)BLOCK_ENTRY * b + 12u);
+}
+
 static int check_blocks(const layout* L, const uint8_t* p) {
-    uint32_t b;
+    uint32_t b, g, frame = 0;
     size_t end;
     block_streams s;
     if (mcd_rd_u32(L->block_table) != 0) return 0;
     for (b = 0; b < L->blocks; ++b)
         if (!block_info(L, b, &s)) return 0;
+    /* Each block's first frame is where the gaps put its intra frame. */
+    for (g = 0; g < L->coded; ++g) {
+        if (g % L->block_frames == 0u && block_first_frame(L, g / L->block_frames) != frame) return 0;
+        if (g + 1u < L->coded) frame += gap_after(L, g);
+    }
     for (end = (size_t)(L->streams - p) + L->stream_bytes; end < L->size; ++end)
         if (p[end]) return 0;
     return 1;
@@ -680,6 +708,32 @@ static void blend(mcd_transform* a, const mcd_transform* b, uint32_t nodes, floa
     }
 }
 
+/* The coded frame g at or before frame position x and the fraction t of the way to the next:
+ * the block by binary search on the blocks' first frames, then the gaps inside it. */
+static void locate(const layout* L, float x, uint32_t* g_out, float* t_out) {
+    uint32_t lo = 0, hi = L->blocks, g, f, next;
+    if (L->coded == L->frames) {
+        g = (uint32_t)x < L->frames - 1u ? (uint32_t)x : L->frames - 1u;
+        *g_out = g;
+        *t_out = g + 1u < L->frames ? x - (float)g : 0.0f;
+        return;
+    }
+    while (hi - lo > 1u) { /* invariant: block lo starts at or before x, block hi after it */
+        uint32_t mid = lo + (hi - lo) / 2u;
+        if ((float)block_first_frame(L, mid) <= x) lo = mid; else hi = mid;
+    }
+    g = lo * L->block_frames;
+    f = block_first_frame(L, lo);
+    while (g + 1u < L->coded && (float)(f + gap_after(L, g)) <= x) {
+        f += gap_after(L, g);
+        g++;
+    }
+    next = g + 1u < L->coded ? f + gap_after(L, g) : f;
+    *g_out = g;
+    *t_out = next > f ? (x - (float)f) / (float)(next - f) : 0.0f;
+    if (*t_out > 1.0f) *t_out = 1.0f;
+}
+
 static mcd_result ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
                              void* scratch, int fresh) {
     ctx c;
@@ -690,11 +744,9 @@ static mcd_result ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mc
     if (!read_view(v, &c.L)) return MCD_ERROR_MALFORMED;
     ctx_bind(&c, (uint8_t*)scratch);
     if (fresh) ctx_reset(&c);
-    i0 = (uint32_t)x;
-    if (i0 > c.L.frames - 1u) i0 = c.L.frames - 1u;
-    i1 = i0 + 1u < c.L.frames ? i0 + 1u : i0;
-    t = x - (float)i0;
-    if (!(t > 0.0f)) i1 = i0; /* on a frame: that frame alone, bit for bit */
+    locate(&c.L, x, &i0, &t);
+    i1 = i0 + 1u < c.L.coded ? i0 + 1u : i0;
+    if (!(t > 0.0f)) i1 = i0; /* on a coded frame: that frame alone, bit for bit */
     r = seek(&c, i0, i1);
     if (r != MCD_OK) return r;
     frame_world(&c, slot_vals(&c, i0));
@@ -771,7 +823,7 @@ mcd_result mcd_ikp_closed_loop(const uint8_t* head, size_t head_size, const uint
     size_t part[12];
     uint32_t f, i, C3, V, W;
     if (!encoder_layout(head, head_size, skeleton, skeleton_size, &c.L)) return MCD_ERROR_INVALID_ARGUMENT;
-    if (frames != c.L.frames || !targets || !codes || !work || ((uintptr_t)work & 15u) != 0)
+    if (frames != c.L.coded || !targets || !codes || !work || ((uintptr_t)work & 15u) != 0)
         return MCD_ERROR_INVALID_ARGUMENT;
     if (c.L.chains && !effectors) return MCD_ERROR_INVALID_ARGUMENT;
     if (work_size < work_layout(&c.L, part)) return MCD_ERROR_BUFFER_TOO_SMALL;

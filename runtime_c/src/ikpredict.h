@@ -16,8 +16,9 @@
 size_t mcd_ikp_work_size(const uint8_t* head, size_t head_size, const uint8_t* skeleton,
                          size_t skeleton_size);
 
-/* Closed-loop encode of a clip. For every frame f (intra when f is a multiple of the block
- * length): the effector codes (root-relative effector positions `effectors` (F x 3C), coded
+/* Closed-loop encode of a clip's `frames` coded frames (frame_count when frame_stride is 1;
+ * coded frame g is frame min(g frame_stride, frame_count - 1)). For every coded frame f (intra
+ * when f is a multiple of the block length): the effector codes (root-relative effector positions `effectors` (F x 3C), coded
  * against the forward kinematics of the decoded frame f - 1), the prediction of the decoder,
  * and the residual codes of `targets` (F x (3J + 3T): phi, varphi, psi per coded joint, then
  * x, y, z per coded translation) are written to `codes` (F x (3C + 3J + 3T); the effector

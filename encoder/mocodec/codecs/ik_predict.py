@@ -44,10 +44,11 @@ ROT_IDENTITY, ROT_CONSTANT, ROT_CODED = 0, 1, 2
 TRANS_REST, TRANS_CODED = 0, 1
 HEADER = 48
 NODE_RECORD = 32
-BLOCK_ENTRY = 12
+BLOCK_ENTRY = 16
 NO_CHILD = 0xFFFF
 MAX_CHAINS = 16
 MAX_BLOCK_FRAMES = 4096
+MAX_GAP = 255
 MAX_K = 4.0
 MIN_STEP, MAX_STEP = 1e-12, 1e3
 MAX_ANGLE_STEP = 0.5  # radians: coarser steps make the prediction meaningless
@@ -71,7 +72,15 @@ class IkPredictSettings:
         Acceleration-constraint parameter of eq. 15 (0 … 4): the predicted angle change is the
         one closest to k × the last change that moves the effectors by their decoded deltas.
     block_frames : int, default 16
-        Frames per block; the first frame of each block is intra (random access cost).
+        Coded frames per block; the first of each block is intra (random access cost).
+    max_gap : int, default 8
+        Most frames from one coded frame to the next (1: every frame is coded, the seed's
+        IKBP). With more, the encoder skips frames that interpolating their coded neighbours
+        reproduces within ``gap_fraction`` of the tolerance (measured on the original
+        motion), and the runtime interpolates them. The tolerance is checked on every frame
+        either way.
+    gap_fraction : float, default 0.7
+        See ``max_gap``.
     effector_step_cm : float or None
         Quantization step of the effector deltas (cm); default ``effector_fraction`` × the
         smallest node tolerance.
@@ -84,16 +93,24 @@ class IkPredictSettings:
         Predict coded translations at constant velocity (else repeat the last frame).
     search_steps : int, default 14
         Most encode-and-check rounds of the step-scale search.
+    relax_rounds : int, default 6
+        Rounds of the per-joint relax pass after the search (0: global scale only).
+    relax_target : float, default 0.9
+        The relax pass aims each joint's worst point at this fraction of its tolerance.
     """
 
     tolerance: Tolerance
     k: float = 0.0
     block_frames: int = 16
+    max_gap: int = 8
+    gap_fraction: float = 0.7
     effector_step_cm: float | None = None
     effector_fraction: float = 0.25
     ik: bool = True
     root_velocity: bool = True
     search_steps: int = 14
+    relax_rounds: int = 6
+    relax_target: float = 0.9
 
     def validate(self) -> None:
         """Raise ValueError for a setting out of range."""
@@ -106,6 +123,14 @@ class IkPredictSettings:
             raise ValueError(f"ik-predict: effector_step_cm must be a positive number, got {self.effector_step_cm!r}")
         if not (np.isfinite(self.effector_fraction) and self.effector_fraction > 0):
             raise ValueError(f"ik-predict: effector_fraction must be positive, got {self.effector_fraction!r}")
+        if not (isinstance(self.relax_rounds, (int, np.integer)) and self.relax_rounds >= 0):
+            raise ValueError(f"ik-predict: relax_rounds must be a non-negative integer, got {self.relax_rounds!r}")
+        if not (np.isfinite(self.relax_target) and 0.0 < self.relax_target <= 1.0):
+            raise ValueError(f"ik-predict: relax_target must be in (0, 1], got {self.relax_target!r}")
+        if not (isinstance(self.max_gap, (int, np.integer)) and 1 <= self.max_gap <= MAX_GAP):
+            raise ValueError(f"ik-predict: max_gap must be an integer in [1, {MAX_GAP}], got {self.max_gap!r}")
+        if not (np.isfinite(self.gap_fraction) and 0.0 < self.gap_fraction < 1.0):
+            raise ValueError(f"ik-predict: gap_fraction must be in (0, 1), got {self.gap_fraction!r}")
         if not (isinstance(self.search_steps, (int, np.integer)) and self.search_steps >= 1):
             raise ValueError(f"ik-predict: search_steps must be a positive integer, got {self.search_steps!r}")
 
@@ -131,11 +156,14 @@ class _Plan:
     primary: np.ndarray      # (N,) primary child or NO_CHILD
     vec: np.ndarray          # (N, 4) float32: bone axis u or the constant quaternion
     chains: list[tuple[int, ...]]
-    targets: np.ndarray      # (F, 3J + 3T)
-    effectors: np.ndarray    # (F, 3C)
+    frames: np.ndarray       # (G,) the coded frames
+    targets: np.ndarray      # (G, 3J + 3T)
+    effectors: np.ndarray    # (G, 3C)
     base_dir: np.ndarray     # (J,) direction step at scale 1, radians
     base_twist: np.ndarray   # (J,)
     base_trans: float        # file units
+    affects: np.ndarray      # (J, N) bool: the points each coded joint's angles move
+    multiplier: np.ndarray   # (J,) per-joint factor on the steps (the relax pass raises it)
 
 
 def _polar_angles(d: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -212,19 +240,24 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
     a = quat_multiply(w, quat_conjugate(shortest_arc(u[joints], d)))
     psi = 2.0 * np.arctan2(np.sum(a[..., :3] * d, axis=-1), a[..., 3])
     ang = np.stack((phi, np.unwrap(az, axis=0), np.unwrap(psi, axis=0)), axis=-1)  # (F, J, 3)
+    # Only the coded frames are sent (unwrapped at the full rate first).
+    tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
+    keep = select_frames(motion, world_pos, tol_units * settings.gap_fraction, settings.max_gap)
+    g = len(keep)
+    ang = ang[keep]
     # Each block's intra frame is sent whole: bring ϕ and ψ into (−π, π] there, and shift the
     # rest of the block by the same turns so the block stays continuous.
-    starts = (np.arange(f) // settings.block_frames) * settings.block_frames
+    starts = (np.arange(g) // settings.block_frames) * settings.block_frames
     turns = np.round(ang[starts, :, 1:] / (2.0 * np.pi))
     ang[:, :, 1:] -= 2.0 * np.pi * turns
     coded_t = np.flatnonzero(trans_mode == TRANS_CODED)
-    targets = np.concatenate((ang.reshape(f, -1), tr[:, coded_t].reshape(f, -1)), axis=1)
+    targets = np.concatenate((ang.reshape(g, -1), tr[keep][:, coded_t].reshape(g, -1)), axis=1)
 
     chains: list[tuple[int, ...]] = []
     if settings.ik:
         chains = [c.nodes for c in motion_chains(sk)][:MAX_CHAINS]
-    eff = [world_pos[:, c[-1]] - world_pos[:, c[0]] for c in chains]
-    effectors = np.concatenate(eff, axis=1) if eff else np.zeros((f, 0))
+    eff = [world_pos[keep, c[-1]] - world_pos[keep, c[0]] for c in chains]
+    effectors = np.concatenate(eff, axis=1) if eff else np.zeros((g, 0))
 
     # Hierarchical steps: a point's tolerance is shared by the coded joints that move it,
     # each joint's share divided by its lever arm (floored so a joint that moves nothing
@@ -240,16 +273,77 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
     share = tol / np.maximum(movers, 1)
     base_dir = np.empty(len(joints))
     base_twist = np.empty(len(joints))
+    affects = np.zeros((len(joints), n), dtype=bool)
     for s, i in enumerate(joints):
         pts = [p for c in moved[i] for p in [c] + sk.descendants(c)]
+        affects[s, pts] = True
         budget = share[pts].min() if pts else tol.min()
         base_dir[s] = budget / max(lever[i], floor)
         base_twist[s] = budget / max(lever_twist[i], floor)
-    return _Plan(rot_mode, trans_mode, polar, primary, vec, chains, targets, effectors,
-                 base_dir, base_twist, 0.5 * float(tol.min()))
+    return _Plan(rot_mode, trans_mode, polar, primary, vec, chains, keep, targets, effectors,
+                 base_dir, base_twist, 0.5 * float(tol.min()), affects, np.ones(len(joints)))
 
 
 # ------------------------------------------------------------------------ payload
+def _interpolation_ok(motion: Motion, world_pos: np.ndarray, tol_units: np.ndarray,
+                      gap: int, starts: np.ndarray) -> np.ndarray:
+    """For each start i of ``starts``: interpolating frames i and i + gap as the runtime does
+    (normalised lerp of sign-aligned local rotations, lerp of translations) keeps every frame
+    between within ``tol_units`` of the original at every node."""
+    sk = motion.skeleton
+    a_rot, b_rot = motion.rotations[starts], motion.rotations[starts + gap]
+    b_rot = np.where(np.sum(a_rot * b_rot, axis=-1, keepdims=True) < 0, -b_rot, b_rot)
+    a_tr, b_tr = motion.translations[starts], motion.translations[starts + gap]
+    ok = np.ones(len(starts), dtype=bool)
+    for r in range(1, gap):
+        t = r / gap
+        q = a_rot + (b_rot - a_rot) * t
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        _, pos = forward_kinematics(sk, q, a_tr + (b_tr - a_tr) * t)
+        err = np.linalg.norm(pos - world_pos[starts + r], axis=-1)
+        ok &= np.all(err <= tol_units[None, :], axis=1)
+    return ok
+
+
+def select_frames(motion: Motion, world_pos: np.ndarray, tol_units: np.ndarray, max_gap: int) -> np.ndarray:
+    """The coded frames (G,): from frame 0, greedily the farthest next frame (at most
+    ``max_gap`` on) such that interpolating every shorter gap from there also holds the frames
+    between within ``tol_units``; always the last frame. Each gap is tested only at the starts
+    where the gap one shorter passed, so long gaps cost little."""
+    f = motion.frame_count
+    ok: dict[int, np.ndarray] = {}
+    alive = np.arange(f)
+    for g in range(2, min(max_gap, f - 1) + 1):
+        alive = alive[alive + g <= f - 1]
+        if not len(alive):
+            break
+        alive = alive[_interpolation_ok(motion, world_pos, tol_units, g, alive)]
+        ok[g] = np.zeros(f, dtype=bool)
+        ok[g][alive] = True
+    keep, i = [0], 0
+    while i < f - 1:
+        step = 1
+        for g in range(min(max_gap, f - 1 - i), 1, -1):
+            if g in ok and ok[g][i]:
+                step = g
+                break
+        i += step
+        keep.append(i)
+    return np.asarray(keep, dtype=np.int64)
+
+
+def payload_frames(payload: bytes) -> np.ndarray:
+    """The frames a payload codes (G,), from its gap table."""
+    frames, nodes = struct.unpack_from("<II", payload, 0)
+    chains, total = struct.unpack_from("<HH", payload, 20)
+    coded = struct.unpack_from("<I", payload, 44)[0]
+    if coded == frames:
+        return np.arange(frames)
+    at = HEADER + NODE_RECORD * nodes + 2 * (chains + total)
+    gaps = np.frombuffer(payload, dtype=np.uint8, count=coded - 1, offset=at)
+    return np.concatenate(([0], np.cumsum(gaps.astype(np.int64))))
+
+
 def skeleton_records(sk: Skeleton) -> bytes:
     """The SKEL section's node records as the runtime reads parents and rest offsets
     (16-byte section header, 32 bytes per node); names and channels are not needed here."""
@@ -265,14 +359,15 @@ def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: flo
     """Header, node table and chain tables (docs/FORMAT.md, IKPR)."""
     n = len(plan.rot_mode)
     joints = np.flatnonzero(plan.rot_mode == ROT_CODED)
-    dir_step = np.clip(scale * plan.base_dir, MIN_STEP, MAX_ANGLE_STEP).astype(np.float32)
-    twist_step = np.clip(scale * plan.base_twist, MIN_STEP, MAX_ANGLE_STEP).astype(np.float32)
+    dir_step = np.clip(scale * plan.multiplier * plan.base_dir, MIN_STEP, MAX_ANGLE_STEP).astype(np.float32)
+    twist_step = np.clip(scale * plan.multiplier * plan.base_twist, MIN_STEP, MAX_ANGLE_STEP).astype(np.float32)
     trans_step = float(np.clip(scale * plan.base_trans, MIN_STEP, MAX_STEP))
     total = sum(len(c) for c in plan.chains)
     flags = FLAG_ROOT_VELOCITY if settings.root_velocity else 0
+    coded = len(plan.frames)
     out = [struct.pack("<IIIIIHHfffB3xII", frames, n, settings.block_frames, len(joints),
                        int(np.sum(plan.trans_mode == TRANS_CODED)), len(plan.chains), total,
-                       settings.k, eff_step, trans_step, flags, stream_bytes, 0)]
+                       settings.k, eff_step, trans_step, flags, stream_bytes, coded)]
     slot = {int(j): s for s, j in enumerate(joints)}
     for i in range(n):
         s = slot.get(i)
@@ -282,6 +377,8 @@ def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: flo
                                twist_step[s] if s is not None else 0.0))
     out.append(struct.pack(f"<{len(plan.chains)}H", *[len(c) for c in plan.chains]))
     out.append(struct.pack(f"<{total}H", *[x for c in plan.chains for x in c]))
+    if coded < frames:
+        out.append(np.diff(plan.frames).astype(np.uint8).tobytes())
     body = b"".join(out)
     return body + bytes((-len(body)) % 4)
 
@@ -313,17 +410,19 @@ def closed_loop(head: bytes, skeleton: bytes, targets: np.ndarray, effectors: np
     return codes, out
 
 
-def assemble(head: bytes, codes: np.ndarray, chains: int, block_frames: int) -> bytes:
-    """The payload: head, block table and each block's three entropy streams."""
-    frames = codes.shape[0]
+def assemble(head: bytes, codes: np.ndarray, chains: int, block_frames: int,
+             frames: np.ndarray) -> bytes:
+    """The payload: head, block table and each block's three entropy streams; ``frames``
+    are the coded frames (each block's entry holds its first)."""
+    coded = codes.shape[0]
     c3 = 3 * chains
     joints3 = (struct.unpack_from("<I", head, 12)[0]) * 3
     table, streams, at = [], [], 0
-    for b0 in range(0, frames, block_frames):
+    for b0 in range(0, coded, block_frames):
         blk = codes[b0: b0 + block_frames]
         parts = [blk[1:, :c3], blk[:, c3: c3 + joints3], blk[:, c3 + joints3:]]
         data = [entropy_encode(p.ravel(), 3) if p.size else b"" for p in parts]
-        table.append(struct.pack("<III", at, len(data[0]), len(data[1])))
+        table.append(struct.pack("<IIII", at, len(data[0]), len(data[1]), int(frames[b0])))
         streams.extend(data)
         at += sum(len(x) for x in data)
     head = head[:40] + struct.pack("<I", at) + head[44:]
@@ -363,7 +462,7 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: IkPredictSettings,
             if exc.code == Result.OUT_OF_RANGE:  # codes past the coder's range: too fine
                 return False
             raise
-        payload = assemble(head, codes, len(plan.chains), settings.block_frames)
+        payload = assemble(head, codes, len(plan.chains), settings.block_frames, plan.frames)
         errors = check(payload)
         checks += 1
         ok = bool(np.all(errors <= tol[None, :]))
@@ -393,6 +492,80 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: IkPredictSettings,
     if best is None:
         raise ToleranceNotMet(f"{motion.name}: ik-predict found no step scale within "
                               f"{settings.search_steps} rounds that meets the tolerance")
+    # Relax: the global scale is set by the worst point; joints whose points all keep
+    # headroom get coarser steps, round by round, while the clip still passes and shrinks.
+    for _ in range(settings.relax_rounds):
+        payload, errors, scale = best
+        ratio = np.max(errors / tol[None, :], axis=0)                       # (N,)
+        worst = np.max(np.where(plan.affects, ratio[None, :], 0.0), axis=1)  # (J,)
+        grow = np.clip(np.sqrt(settings.relax_target / np.maximum(worst, 1e-9)), 1.0, 1.5)
+        if not np.any(grow > 1.01):
+            break
+        previous = plan.multiplier.copy()
+        plan.multiplier = previous * grow
+        size = len(payload)
+        if not attempt(scale) or len(best[0]) >= size:
+            plan.multiplier = previous
+            break
     payload, errors, scale = best
     return IkPredictClipResult(payload, errors, scale, checks, len(plan.chains),
                                time.perf_counter() - started)
+
+
+# ------------------------------------------------------------------------ inspection
+def head_size(payload: bytes) -> int:
+    """Bytes of a payload's head (header, node table, chain and gap tables), as the runtime
+    parses it."""
+    frames, nodes = struct.unpack_from("<II", payload, 0)
+    chains, total = struct.unpack_from("<HH", payload, 20)
+    coded = struct.unpack_from("<I", payload, 44)[0]
+    size = HEADER + NODE_RECORD * nodes + 2 * (chains + total) + (coded - 1 if coded < frames else 0)
+    return size + (-size) % 4
+
+
+def payload_codes(payload: bytes) -> np.ndarray:
+    """Every code of a payload (G coded frames, 3C + 3J + 3T) read back from its entropy streams (the
+    effector part of intra rows is 0), in the layout :func:`closed_loop` returns."""
+    from ..entropy import entropy_decode
+
+    frames, _, block, joints, tracks, chains = struct.unpack_from("<IIIIIH", payload, 0)
+    frames = struct.unpack_from("<I", payload, 44)[0]
+    c3, j3, t3 = 3 * chains, 3 * joints, 3 * tracks
+    at = head_size(payload)
+    blocks = -(-frames // block)
+    table = np.frombuffer(payload, dtype="<u4", count=4 * blocks, offset=at).reshape(blocks, 4)
+    streams = at + BLOCK_ENTRY * blocks
+    total = struct.unpack_from("<I", payload, 40)[0]
+    codes = np.zeros((frames, c3 + j3 + t3), dtype=np.int32)
+    for b in range(blocks):
+        n = min(block, frames - b * block)
+        off, e_bytes, a_bytes = (int(x) for x in table[b, :3])
+        end = int(table[b + 1, 0]) if b + 1 < blocks else total
+        sizes = (e_bytes, a_bytes, end - off - e_bytes - a_bytes)
+        widths = (c3, j3, t3)
+        rows = (n - 1, n, n)
+        cols = (slice(0, c3), slice(c3, c3 + j3), slice(c3 + j3, c3 + j3 + t3))
+        first = (b * block + 1, b * block, b * block)
+        pos = streams + off
+        for k in range(3):
+            if rows[k] * widths[k]:
+                vals = entropy_decode(payload[pos: pos + sizes[k]], rows[k] * widths[k], 3)
+                codes[first[k]: first[k] + rows[k], cols[k]] = vals.reshape(rows[k], widths[k])
+            pos += sizes[k]
+    return codes
+
+
+def reconstruction(payload: bytes, motion: Motion, cm_per_unit: float,
+                   settings: IkPredictSettings) -> np.ndarray:
+    """The encoder's own reconstruction of ``payload``: the closed loop rerun with the
+    payload's head on the clip's signals, as local poses (G, N, 7) float32 at every coded
+    frame (:func:`payload_frames`).
+    Raises ValueError when the rerun does not give the payload's codes back."""
+    plan = analyse(motion, cm_per_unit, settings)
+    head = payload[: head_size(payload)]
+    head = head[:40] + bytes(4) + head[44:]  # the closed loop ran before the streams existed
+    codes, poses = closed_loop(head, skeleton_records(motion.skeleton), plan.targets,
+                               plan.effectors, poses=True)
+    if not np.array_equal(codes, payload_codes(payload)):
+        raise ValueError("ik-predict: the closed loop does not reproduce the payload's codes")
+    return poses
