@@ -259,7 +259,8 @@ typedef struct state {
     int32_t block;     /* block whose codes are decoded, -1 none */
     int32_t cur;       /* last decoded frame, -1 none */
     int32_t run_start; /* frames run_start ... cur were decoded in order from an intra frame */
-    int32_t pad;
+    int32_t pose_frame[2]; /* coded frame whose local pose each pose slot holds, -1 none */
+    int32_t pad[3];
 } state;
 
 typedef struct ctx {
@@ -268,7 +269,8 @@ typedef struct ctx {
     int32_t *joint_slot, *track_slot; /* per node: index among coded joints / tracks, or -1 */
     int32_t* codes[3];                /* decoded block: effector, angle, translation codes */
     double *vals, *steps, *jac, *m, *r, *theta0, *world;
-    mcd_transform* other; /* the second frame's pose when interpolating */
+    mcd_transform* poses; /* two cached local poses (N each): sequential samples between the
+                           * same two coded frames only blend */
 } ctx;
 
 /* Bytes of each part of the working memory, 16-aligned, in order; returns the total. */
@@ -286,7 +288,7 @@ static size_t work_layout(const layout* L, size_t part[12]) {
     part[8] = 8u * C3 * 2u * L->joints;
     part[9] = 8u * C3 * C3 + 8u * C3;
     part[10] = 8u * 2u * L->joints + 8u * 4u * L->nodes;
-    part[11] = sizeof(mcd_transform) * (size_t)L->nodes;
+    part[11] = 2u * sizeof(mcd_transform) * (size_t)L->nodes;
     for (i = 0; i < 12u; ++i) total += align16z(part[i]);
     return total;
 }
@@ -313,7 +315,7 @@ static void ctx_bind(ctx* c, uint8_t* work) {
     c->r = c->m + 9u * (size_t)c->L.chains * c->L.chains;
     c->theta0 = (double*)p[10];
     c->world = c->theta0 + 2u * (size_t)c->L.joints;
-    c->other = (mcd_transform*)p[11];
+    c->poses = (mcd_transform*)p[11];
 }
 
 /* Slot maps and per-value steps (what does not change while sampling one clip). */
@@ -335,6 +337,7 @@ static void ctx_reset(ctx* c) {
     c->st->block = -1;
     c->st->cur = -1;
     c->st->run_start = 0;
+    c->st->pose_frame[0] = c->st->pose_frame[1] = -1;
 }
 
 static double* slot_vals(const ctx* c, uint32_t frame) {
@@ -734,6 +737,27 @@ static void locate(const layout* L, float x, uint32_t* g_out, float* t_out) {
     if (*t_out > 1.0f) *t_out = 1.0f;
 }
 
+/* The pose slot holding coded frame g, or -1. */
+static int cached_pose(const ctx* c, uint32_t g) {
+    if (c->st->pose_frame[0] == (int32_t)g) return 0;
+    if (c->st->pose_frame[1] == (int32_t)g) return 1;
+    return -1;
+}
+
+/* The local pose of coded frame g (decoded, or cached), computing it into the slot that does
+ * not hold coded frame `keep`. The pose depends on the decoded values only, so a cached pose
+ * is bit for bit the one a fresh decode gives. */
+static const mcd_transform* pose_of(ctx* c, uint32_t g, uint32_t keep) {
+    int s = cached_pose(c, g);
+    if (s < 0) {
+        s = c->st->pose_frame[0] == (int32_t)keep ? 1 : 0;
+        frame_world(c, slot_vals(c, g));
+        frame_local(c, slot_vals(c, g), c->poses + (size_t)s * c->L.nodes);
+        c->st->pose_frame[s] = (int32_t)g;
+    }
+    return c->poses + (size_t)s * c->L.nodes;
+}
+
 static mcd_result ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
                              void* scratch, int fresh) {
     ctx c;
@@ -747,15 +771,12 @@ static mcd_result ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mc
     locate(&c.L, x, &i0, &t);
     i1 = i0 + 1u < c.L.coded ? i0 + 1u : i0;
     if (!(t > 0.0f)) i1 = i0; /* on a coded frame: that frame alone, bit for bit */
-    r = seek(&c, i0, i1);
-    if (r != MCD_OK) return r;
-    frame_world(&c, slot_vals(&c, i0));
-    frame_local(&c, slot_vals(&c, i0), out);
-    if (i1 != i0) {
-        frame_world(&c, slot_vals(&c, i1));
-        frame_local(&c, slot_vals(&c, i1), c.other);
-        blend(out, c.other, c.L.nodes, t);
+    if (cached_pose(&c, i0) < 0 || cached_pose(&c, i1) < 0) {
+        r = seek(&c, i0, i1);
+        if (r != MCD_OK) return r;
     }
+    memcpy(out, pose_of(&c, i0, i1), sizeof(mcd_transform) * c.L.nodes);
+    if (i1 != i0) blend(out, pose_of(&c, i1, i0), c.L.nodes, t);
     return MCD_OK;
 }
 
