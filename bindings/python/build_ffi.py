@@ -16,6 +16,8 @@ RUNTIME = (HERE / ".." / ".." / "runtime_c").resolve()
 HEADER = RUNTIME / "include" / "mocodec.h"
 # The entropy coder is internal to the runtime but the encoder runs it too (one implementation).
 ENTROPY_HEADER = RUNTIME / "src" / "entropy.h"
+# So is the ik-predict prediction step: the encoder's closed loop runs the decoder's code.
+IKPREDICT_HEADER = RUNTIME / "src" / "ikpredict.h"
 
 # Glue that only loops over the public API, so Python pays one call per clip, not per frame.
 GLUE = """
@@ -53,9 +55,10 @@ def header_cdef(header: Path = HEADER) -> str:
 ffibuilder = FFI()
 ffibuilder.cdef(header_cdef() + GLUE)
 ffibuilder.cdef(header_cdef(ENTROPY_HEADER))
+ffibuilder.cdef(header_cdef(IKPREDICT_HEADER))
 ffibuilder.set_source(
     "mocodec_runtime._native",
-    '#include "mocodec.h"\n#include "entropy.h"\n' + GLUE_SOURCE,
+    '#include "mocodec.h"\n#include "entropy.h"\n#include "ikpredict.h"\n' + GLUE_SOURCE,
     # setuptools wants paths relative to the project directory.
     sources=[os.path.relpath(p, HERE) for p in sorted((RUNTIME / "src").glob("*.c"))],
     include_dirs=[os.path.relpath(RUNTIME / d, HERE) for d in ("include", "src")],

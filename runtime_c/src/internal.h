@@ -173,6 +173,7 @@ extern const mcd_codec_ops mcd_codec_spline_ops;
 extern const mcd_codec_ops mcd_codec_neural_ops;
 extern const mcd_codec_ops mcd_codec_rma_ops;
 extern const mcd_codec_ops mcd_codec_fkwavelet_ops;
+extern const mcd_codec_ops mcd_codec_ikpredict_ops;
 
 /* ---------------------------------------------------------------- container access */
 /* Resolve clip `clip` of an opened (validated) asset. */

@@ -11,6 +11,7 @@
 
 #include <dirent.h>
 #include <stdarg.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -322,6 +323,23 @@ int mcd_test_pose_finite(const mcd_transform* pose, uint32_t count) {
             if (!(pose[i].translation[k] - pose[i].translation[k] == 0.0f)) return 0;
     }
     return 1;
+}
+
+double mcd_test_pose_gap(const mcd_transform* pose, const float* want, uint32_t count) {
+    double worst = 0.0;
+    uint32_t i, k;
+    for (i = 0; i < count; ++i) {
+        const float* w = want + (size_t)i * 7u;
+        for (k = 0; k < 4u; ++k) {
+            double d = fabs((double)pose[i].rotation[k] - w[k]);
+            if (d > worst) worst = d;
+        }
+        for (k = 0; k < 3u; ++k) {
+            double d = fabs((double)pose[i].translation[k] - w[4 + k]) / (1.0 + fabs(w[4 + k]));
+            if (d > worst) worst = d;
+        }
+    }
+    return worst;
 }
 
 /* ---------------------------------------------------------------- runner */

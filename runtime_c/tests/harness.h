@@ -80,4 +80,8 @@ float* mcd_test_frame_times(const mcd_clip_info* info, size_t* out_count);
 
 int mcd_test_pose_finite(const mcd_transform* pose, uint32_t count);
 
+/* Largest difference between `pose` and `want` (count x 7 floats: qx qy qz qw tx ty tz):
+ * absolute for rotation components, relative to 1 + |want| for translations. */
+double mcd_test_pose_gap(const mcd_transform* pose, const float* want, uint32_t count);
+
 #endif /* MCD_TEST_HARNESS_H */

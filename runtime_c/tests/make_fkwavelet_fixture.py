@@ -6,28 +6,20 @@ every frame, for test_fkwavelet.c. Rerun after a change of the FKWV layout:
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
+from fixture_util import CM, c_bytes, c_floats, sample_head
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "encoder"))
+from mocodec.codecs import fk_wavelet as W
+from mocodec.encode import _single_clip_asset, make_check
+from mocodec.tolerance import Tolerance
 
-from mocodec.codecs import fk_wavelet as W  # noqa: E402
-from mocodec.encode import _single_clip_asset, make_check  # noqa: E402
-from mocodec.io import read_bvh  # noqa: E402
-from mocodec.motion import Motion  # noqa: E402
-from mocodec.tolerance import Tolerance  # noqa: E402
-
-CM = 5.6444
 FRAMES = 60
 
 
 def main() -> None:
-    full = read_bvh(REPO / "encoder" / "mocodec" / "samples" / "09_11.bvh")
-    m = Motion(full.skeleton, full.rotations[:FRAMES].copy(), full.translations[:FRAMES].copy(),
-               full.frame_time, full.name)
+    m = sample_head("09_11", FRAMES)
     check = make_check([m], [CM], "fk-wavelet")
     r = W.encode_clip(m, CM, W.FkWaveletSettings(Tolerance(3.0)), lambda p: check(0, p))
     asset = _single_clip_asset(m, CM, "fk-wavelet", r.payload)
@@ -37,17 +29,11 @@ def main() -> None:
              "#ifndef MCD_FKWAVELET_FIXTURE_H", "#define MCD_FKWAVELET_FIXTURE_H", "",
              f"#define FKW_FIXTURE_FRAMES {m.frame_count}u",
              f"#define FKW_FIXTURE_NODES {m.skeleton.node_count}u",
-             f"#define FKW_FIXTURE_CHANNELS {p.channels}u",
-             f"static const unsigned char k_fkw_fixture[{len(asset)}] = {{"]
-    for i in range(0, len(asset), 16):
-        lines.append("    " + ", ".join(f"0x{b:02x}" for b in asset[i:i + 16]) + ",")
-    lines.append("};")
+             f"#define FKW_FIXTURE_CHANNELS {p.channels}u"]
+    lines += c_bytes("k_fkw_fixture", asset)
     lines.append("/* Local pose of every node on every frame: qx qy qz qw tx ty tz. */")
-    lines.append(f"static const float k_fkw_fixture_poses[{m.frame_count * m.skeleton.node_count * 7}] = {{")
-    vals = np.concatenate((rot, trans), axis=-1).astype(np.float32).reshape(-1)
-    for i in range(0, len(vals), 7):
-        lines.append("    " + ", ".join(f"{float(v):.8e}f" for v in vals[i:i + 7]) + ",")
-    lines += ["};", "", "#endif", ""]
+    lines += c_floats("k_fkw_fixture_poses", np.concatenate((rot, trans), axis=-1), 8)
+    lines += ["", "#endif", ""]
     (Path(__file__).parent / "fkwavelet_fixture.h").write_text("\n".join(lines))
     print(f"{len(asset)} bytes, payload {len(r.payload)}, levels {p.levels}, channels {p.channels}")
 

@@ -86,4 +86,6 @@ _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
         "stages": r.stages, "encode_seconds": r.seconds}),
     "fk-wavelet": _per_clip("fk_wavelet", "FkWaveletSettings", lambda r: {
         "levels": r.levels, "tracks": r.tracks, "repairs": r.repairs, "encode_seconds": r.seconds}),
+    "ik-predict": _per_clip("ik_predict", "IkPredictSettings", lambda r: {
+        "step_scale": r.scale, "checks": r.checks, "chains": r.chains, "encode_seconds": r.seconds}),
 }
