@@ -70,8 +70,8 @@ def read_series(path: Path) -> list[Series]:
         return []
     if isinstance(data, list):
         data = {"rows": data}
-    if not isinstance(data, dict):
-        return []
+    if not isinstance(data, dict) or "tolerance_cm" in data:
+        return []  # a sweep of settings at one tolerance (e.g. ik_predict_variants) is no RD curve
     if isinstance(data.get("rows"), list):
         s = Series(str(data.get("label") or data.get("codec") or path.stem), data.get("clips"), data.get("frames"))
         s.points = sorted(p for p in map(_point, data["rows"]) if p is not None)

@@ -109,7 +109,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(row), file=sys.stderr)
 
     report = {
-        "codec": args.codec, "data": str(args.data), "clips": len(motions), "frames": frames,
+        "codec": args.codec, "data": str(args.data),
+        "label": args.codec if args.effector_tolerance is None
+        else f"{args.codec}, effector tolerance {args.effector_tolerance:g} cm", "clips": len(motions), "frames": frames,
         "effector_tolerance_cm": args.effector_tolerance, "options": options, "machine": platform.machine(), "python": platform.python_version(),
         "acl_reference": str(acl_reference.DEFAULT_PATH) if whole_dev_set else None,
         "acl_decode_us_per_pose": acl.decode_us if whole_dev_set else None, "rows": rows,
