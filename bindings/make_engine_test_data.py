@@ -36,8 +36,8 @@ def main(out: Path) -> int:
     walk = read_bvh(SAMPLES / "07_01.bvh").slice(0, 121)
     walk.name = "07_01_head"
     failed = []
-    # Each codec at a tolerance it is known to meet on these clips (neural reaches 3 cm, not 1:
-    # bench/results/neural.md), so every binding samples a real asset of every codec.
+    # Each codec at a tolerance it meets on these clips; neural at 3 cm because it trains in
+    # seconds there (bench/results/neural_windows.md), so every binding samples a real asset.
     tolerance_cm = {"neural": 3.0}
     for codec in codecs.available():
         motions = [run, walk]

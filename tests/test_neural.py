@@ -1,6 +1,7 @@
-"""The neural codec (seed 001): the tolerance on every frame through the C runtime, the runtime
-against the Python model of the quantized network, determinism, and rejection of corrupted
-NEUR payloads. Clips are short slices of the samples so the training stays a few seconds."""
+"""The neural codec (seed 001): the tolerance on every frame through the C runtime (window
+borders included), the runtime against the Python model of the quantized networks, determinism,
+and rejection of corrupted NEUR payloads (window table included). Clips are short slices of the
+samples in short windows so the training stays a few seconds."""
 from __future__ import annotations
 
 import struct
@@ -19,11 +20,12 @@ from mocodec.tolerance import Tolerance
 from mocodec.units import resolve_units
 
 CM = 5.6444  # the CMU samples' centimetres per unit
-OPTIONS = {"max_frequencies": 12, "iterations": 500}
+# Short windows: several windows (and borders) even in a short slice, each trained quickly.
+OPTIONS = {"max_frequencies": 8, "iterations": 300, "window_frames": 24}
 
 
-def _clip(sample_paths, index: int, frames: int = 60) -> Motion:
-    return read_bvh(sample_paths[index]).slice(0, frames)
+def _clip(sample_paths, index: int, frames: int = 60, first: int = 0) -> Motion:
+    return read_bvh(sample_paths[index]).slice(first, first + frames)
 
 
 def _encode_payload(m: Motion, tol: float, **options) -> N.NeuralClipResult:
@@ -34,8 +36,10 @@ def _encode_payload(m: Motion, tol: float, **options) -> N.NeuralClipResult:
 
 @pytest.fixture(scope="module")
 def encoded(sample_paths) -> tuple[Motion, N.NeuralClipResult]:
-    m = _clip(sample_paths, 2)
-    return m, _encode_payload(m, 4.0)
+    m = _clip(sample_paths, 2, 60, first=1)
+    r = _encode_payload(m, 4.0)
+    assert len(r.windows) >= 2 and any(w["K"] > 0 for w in r.windows)
+    return m, r
 
 
 def test_tolerance_holds_on_every_frame_of_the_samples(sample_paths):
@@ -43,20 +47,39 @@ def test_tolerance_holds_on_every_frame_of_the_samples(sample_paths):
     units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
     result = encode_motions(motions, units, "neural", Tolerance(5.0), OPTIONS)
     asset = Asset(result.asset)
-    for m in motions:
+    for m, clip in zip(motions, result.clips):
         _, pos_o = forward_kinematics(m.skeleton, m.rotations, m.translations)
         _, pos_d = asset.sample_frames(m.name, world=True)
         err = np.linalg.norm(pos_o - pos_d, axis=-1) * CM
         assert err.shape == (m.frame_count, m.skeleton.node_count)
         assert err.max() <= 5.0, (m.name, err.max())
         assert err.max() > 0.5, m.name  # a lossy network, not an accidental raw copy
+        windows = clip.stats["windows"]
+        assert len(windows) >= 3, windows
+        # The windows tile the clip, sharing their border frames, which are within tolerance.
+        starts = [w[0] for w in windows]
+        assert starts[0] == 0 and windows[-1][0] + windows[-1][1] == m.frame_count
+        assert all(s + n - 1 == nxt for (s, n, _, _), nxt in zip(windows, starts[1:]))
+        assert err[starts].max() <= 5.0
+
+
+def test_frame_zero_t_pose_gets_its_own_window(sample_paths):
+    m = _clip(sample_paths, 0, 100)
+    world = forward_kinematics(m.skeleton, m.rotations, m.translations)[1]
+    windows = N.initial_windows(world, CM, 40, 20.0)
+    assert windows[0] == (0, 2)  # CMU's synthetic frame 0, a jump into frame 1
+    assert windows[-1][0] + windows[-1][1] == m.frame_count
+    assert max(n for _, n in windows) <= 40
+    assert all(s + n - 1 == nxt for (s, n), (nxt, _) in zip(windows, windows[1:]))
 
 
 def test_runtime_agrees_with_the_python_model(encoded):
     m, r = encoded
     asset = Asset(_single_clip_asset(m, CM, "neural", r.payload))
     # Frames and positions between them: the network is defined at any t.
-    x = np.concatenate((np.arange(m.frame_count, dtype=np.float64), np.linspace(0.25, m.frame_count - 1.5, 37)))
+    borders = np.array([w["start"] for w in r.windows[1:]], dtype=np.float64)
+    x = np.concatenate((np.arange(m.frame_count, dtype=np.float64), np.linspace(0.25, m.frame_count - 1.5, 37),
+                        borders - 0.5, borders + 0.25))
     times = (x / m.frame_rate).astype(np.float32)
     # Local transforms, chained in float64 on both sides: the comparison is of the network's
     # evaluation, not of the runtime's float32 local-to-world pass (which alone moves an end
@@ -82,10 +105,11 @@ def test_same_seed_same_asset_other_seed_other_asset(sample_paths):
 
 
 def test_unreachable_tolerance_is_an_error(sample_paths):
-    m = _clip(sample_paths, 0, 40)
+    # Windows are halved down to two frames; 16-bit weights cannot reach 1e-5 cm there.
+    m = _clip(sample_paths, 0, 6, first=1)
     units = [resolve_units(m.skeleton, "cmu", None)]
     with pytest.raises(EncodeError, match="cannot meet the tolerance"):
-        encode_motions([m], units, "neural", Tolerance(0.01), {"max_frequencies": 1, "iterations": 50})
+        encode_motions([m], units, "neural", Tolerance(1e-5), {"max_frequencies": 1, "iterations": 50})
 
 
 def _validate(m: Motion, payload: bytes) -> mocodec_runtime.Result:
@@ -98,34 +122,73 @@ def _flip(payload: bytes, byte: int, bit: int) -> bytes:
     return bytes(b)
 
 
+def _offsets(m: Motion, p: bytes) -> dict[str, int]:
+    """Where the parts of a NEUR 2 payload start (docs/FORMAT.md)."""
+    n = m.skeleton.node_count
+    mo, r, w = struct.unpack_from("<HHH", p, 8)
+    refs = N.HEADER_SIZE + N.NODE_ENTRY * n
+    table = refs + 16 * r + 8 * mo
+    return {"nodes": N.HEADER_SIZE, "refs": refs, "table": table, "block0": table + N.WINDOW_ENTRY * w,
+            "windows": w}
+
+
 def test_corrupted_payload_is_rejected(encoded):
     m, r = encoded
     p = r.payload
     assert _validate(m, p) == mocodec_runtime.Result.OK
-    n = m.skeleton.node_count
-    k = struct.unpack_from("<H", p, 8)[0]
-    truncated = [p[:-4], p[:-8], p[: len(p) // 2], p[:40], p + bytes(4)]
+    o = _offsets(m, p)
+    t, b0 = o["table"], o["block0"]
+    # The block of the first window with frequencies.
+    blocks = [struct.unpack_from("<I", p, t + N.WINDOW_ENTRY * i + 8)[0] for i in range(o["windows"])]
+    b1 = next(b for b in blocks if struct.unpack_from("<H", p, b)[0] > 0)
+    k1 = struct.unpack_from("<H", p, b1)[0]
+    assert o["windows"] >= 2 and k1 > 0
+    truncated = [p[:-4], p[:-8], p[: len(p) // 2], p[:t + 8], p[:12], p + bytes(4)]
     flips = [
         _flip(p, 0, 0),                  # frame count
         _flip(p, 4, 1),                  # node count
-        _flip(p, 8, 6),                  # K past the format's limit
-        _flip(p, 12, 0),                 # output count: the sizes no longer add up
-        _flip(p, 16, 4),                 # bits = 31 or so
-        _flip(p, 17, 0),                 # reserved byte
-        _flip(p, 23, 7),                 # first step negative
-        _flip(p, 23, 6),                 # first step huge (weights out of bounds)
-        _flip(p, 44, 3),                 # node 0 rotation mode unknown
-        _flip(p, 44 + 8 * 3 + 2, 7),     # node 3 output index past M
-        _flip(p, 44 + 8 * n + 2 * k + (2 if k % 2 else 0) + 3, 6),  # reference quaternion not unit
+        _flip(p, 8, 0),                  # output count: the sizes no longer add up
+        _flip(p, 12, 0),                 # window count
+        _flip(p, 12, 7),                 # window count past the frame count
+        _flip(p, 14, 0),                 # reserved
+        _flip(p, o["nodes"], 3),         # node 0 rotation mode unknown
+        _flip(p, o["nodes"] + 8 * 3 + 2, 7),   # node 3 output index past M
+        _flip(p, o["refs"] + 3, 6),      # reference quaternion not unit
+        _flip(p, t, 0),                  # first window does not start at frame 0
+        _flip(p, t + 4, 0),              # first window's frame count: the next one no longer starts on its last frame
+        _flip(p, t + N.WINDOW_ENTRY, 1),   # second window's start
+        _flip(p, t + 8, 2),              # first block's offset
+        _flip(p, t + 12, 2),             # first block's size
+        _flip(p, t + N.WINDOW_ENTRY + 12, 5),  # second block's size past the payload
+        _flip(p, b1, 6),                 # K past the format's limit
+        _flip(p, b1 + 2, 0),             # H: the block size no longer adds up
+        _flip(p, b1 + 4, 4),             # bits = 2^4 + ... past 16
+        _flip(p, b1 + 5, 0),             # reserved byte
+        _flip(p, b1 + 8 + 3, 7),         # first step negative
+        _flip(p, b1 + 8 + 3, 6),         # first step huge (weights out of bounds)
+        _flip(p, b0 + 8 + 4 * 5 + 3, 7),   # window 0: last step negative
     ]
-    freq = 44 + 8 * n
-    assert k > 0
-    zero_freq = p[:freq] + bytes(2) + p[freq + 2:]               # frequency 0 is not allowed
-    extra = [zero_freq]
-    if k % 2:  # the alignment padding after an odd number of frequencies must be zero
-        extra.append(p[:freq + 2 * k] + b"\1\0" + p[freq + 2 * k + 2:])
-    for bad in truncated + flips + extra:
-        assert _validate(m, bad) != mocodec_runtime.Result.OK
+    # The last window must end on the last frame: shorten it by one.
+    last = t + N.WINDOW_ENTRY * (o["windows"] - 1)
+    short = bytearray(p)
+    struct.pack_into("<I", short, last + 4, struct.unpack_from("<I", p, last + 4)[0] - 1)
+    freq = b1 + N.WINDOW_HEADER
+    extra = [bytes(short), p[:freq] + bytes(2) + p[freq + 2:]]  # frequency 0 is not allowed
+    if k1 % 2:  # the alignment padding after an odd number of frequencies must be zero
+        extra.append(p[:freq + 2 * k1] + b"\1\0" + p[freq + 2 * k1 + 2:])
+    # Padding after the last block's weight stream must be zero when there is some.
+    for i, bad in enumerate(truncated + flips + extra):
+        assert _validate(m, bad) != mocodec_runtime.Result.OK, i
+
+
+def test_section_version_1_is_unsupported(encoded):
+    m, r = encoded
+    data = bytearray(_single_clip_asset(m, CM, "neural", r.payload))
+    count = struct.unpack_from("<I", data, 24)[0]
+    entries = [32 + 16 * i for i in range(count) if data[32 + 16 * i:36 + 16 * i] == b"NEUR"]
+    assert len(entries) == 1 and struct.unpack_from("<I", data, entries[0] + 4)[0] == N.SECTION_VERSION == 2
+    struct.pack_into("<I", data, entries[0] + 4, 1)
+    assert mocodec_runtime.validate(bytes(data), skip_checksum=True) == mocodec_runtime.Result.UNSUPPORTED
 
 
 def test_frequency_choice_naive_and_adaptive(sample_paths):

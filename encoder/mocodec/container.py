@@ -25,6 +25,8 @@ CODEC_IDS = {"spline": 1, "rma": 2, "ik-predict": 3, "fk-wavelet": 4, "neural": 
 CODEC_NAMES = {v: k for k, v in CODEC_IDS.items()}
 CODEC_SECTION_KINDS = {"spline": b"SPLN", "rma": b"RMAL", "ik-predict": b"IKPR",
                        "fk-wavelet": b"FKWV", "neural": b"NEUR"}
+# Section layout versions other than 1 (docs/FORMAT.md): NEUR 2 holds windowed networks.
+CODEC_SECTION_VERSIONS = {"neural": 2}
 
 
 class ContainerError(ValueError):
@@ -163,7 +165,7 @@ class AssetBuilder:
             blob += e.payload
         for codec, blob in blobs.items():
             codec_section[codec] = len(sections)
-            sections.append(Section(CODEC_SECTION_KINDS[codec], bytes(blob)))
+            sections.append(Section(CODEC_SECTION_KINDS[codec], bytes(blob), CODEC_SECTION_VERSIONS.get(codec, 1)))
         sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets))
         if self.contacts:
             sections.append(Section(b"CNTC", self.contacts))

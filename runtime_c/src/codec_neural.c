@@ -1,29 +1,43 @@
-/* Codec `neural`: a clip as a Fourier-feature MLP from time to pose (seed 001; docs/FORMAT.md,
- * NEUR).
+/* Codec `neural`: a clip as Fourier-feature MLPs from time to pose (seed 001; docs/FORMAT.md,
+ * NEUR version 2).
  *
- * A sample evaluates eq. 2 once: K sin/cos pairs, then (2K+1)·H + H·H + H·M multiply-adds and
- * 2H expm1f. The quantized weights are expanded into the scratch when the clip changes
- * (`fresh`), so a sample reads only floats. Validation bounds every weight, scale and offset,
- * and the outputs are clamped, so any accepted payload samples to finite transforms. */
+ * The clip is cut into windows that tile it (consecutive windows share their border frame),
+ * each with its own network. A sample picks the window of x and evaluates its eq. 2 once: K
+ * sin/cos pairs, then (2K+1)·H + H·H + H·M multiply-adds and 2H expm1f. The quantized weights
+ * of the window are expanded into the scratch when the sample lands in another window than the
+ * one held, so sequential playback reads only floats. Validation bounds every offset, weight,
+ * scale and offset value, and the outputs are clamped, so any accepted payload samples to
+ * finite transforms. */
 #include <math.h>
 #include <string.h>
 
 #include "internal.h"
 
-#define HEADER 44u
+#define HEADER 16u
 #define NODE_ENTRY 8u
+#define WINDOW_ENTRY 16u
+#define WINDOW_HEADER 32u
 #define MAX_K 32u
 #define MAX_H (2u * (2u * MAX_K + 1u))
+#define MAX_WINDOWS 65535u
 #define MAX_WEIGHT 1e4f
 #define PI_D 3.14159265358979323846
+#define NO_WINDOW 0xFFFFFFFFu
 
 enum { ROT_IDENTITY = 0, ROT_CONSTANT = 1, ROT_QUATERNION = 2, ROT_AXIS_ANGLE = 3 };
 enum { TRANS_REST = 0, TRANS_OUTPUT = 2 };
 
+/* The clip-wide part of a payload (NEUR version 2). */
 typedef struct layout {
-    uint32_t frames, nodes, k, h, m, refs, bits, d, weights;
-    const uint8_t *steps, *node_table, *freqs, *ref_table, *scale, *offset, *stream;
+    uint32_t frames, nodes, m, refs, windows;
+    const uint8_t *node_table, *ref_table, *scale, *offset, *window_table;
 } layout;
+
+/* One window's network: frames [start, start + count - 1], eq. 1-2 with its own K, H, bits. */
+typedef struct window {
+    uint32_t start, count, k, h, bits, d, weights;
+    const uint8_t *steps, *freqs, *stream;
+} window;
 
 static size_t align4z(size_t x) {
     return (x + 3u) & ~(size_t)3u;
@@ -33,28 +47,48 @@ static size_t align16z(size_t x) {
     return (x + 15u) & ~(size_t)15u;
 }
 
-/* Bytes before the weight stream; only meaningful for counts within the format's limits. */
-static size_t head_bytes(uint32_t nodes, uint32_t k, uint32_t m, uint32_t refs) {
-    return HEADER + (size_t)nodes * NODE_ENTRY + align4z(2u * (size_t)k) + 16u * (size_t)refs + 8u * (size_t)m;
+/* Bytes before the first window block; only meaningful for counts within the format's limits. */
+static size_t head_bytes(uint32_t nodes, uint32_t m, uint32_t refs, uint32_t windows) {
+    return HEADER + (size_t)nodes * NODE_ENTRY + 16u * (size_t)refs + 8u * (size_t)m + (size_t)windows * WINDOW_ENTRY;
+}
+
+static uint32_t weight_count(uint32_t d, uint32_t h, uint32_t m) {
+    return h * d + h + h * h + h + m * h + m;
+}
+
+/* Bytes of a window block with these counts (counts within the format's limits). */
+static size_t block_bytes(uint32_t k, uint32_t h, uint32_t m, uint32_t bits) {
+    uint64_t stream_bits = (uint64_t)weight_count(2u * k + 1u, h, m) * bits;
+    return WINDOW_HEADER + align4z(2u * (size_t)k) + align4z((size_t)((stream_bits + 7u) / 8u));
 }
 
 static void read_layout(const uint8_t* p, layout* L) {
     L->frames = mcd_rd_u32(p);
     L->nodes = mcd_rd_u32(p + 4);
-    L->k = mcd_rd_u16(p + 8);
-    L->h = mcd_rd_u16(p + 10);
-    L->m = mcd_rd_u16(p + 12);
-    L->refs = mcd_rd_u16(p + 14);
-    L->bits = p[16];
-    L->d = 2u * L->k + 1u;
-    L->weights = L->h * L->d + L->h + L->h * L->h + L->h + L->m * L->h + L->m;
-    L->steps = p + 20;
+    L->m = mcd_rd_u16(p + 8);
+    L->refs = mcd_rd_u16(p + 10);
+    L->windows = mcd_rd_u16(p + 12);
     L->node_table = p + HEADER;
-    L->freqs = L->node_table + (size_t)L->nodes * NODE_ENTRY;
-    L->ref_table = L->freqs + align4z(2u * (size_t)L->k);
+    L->ref_table = L->node_table + (size_t)L->nodes * NODE_ENTRY;
     L->scale = L->ref_table + 16u * (size_t)L->refs;
     L->offset = L->scale + 4u * (size_t)L->m;
-    L->stream = L->offset + 4u * (size_t)L->m;
+    L->window_table = L->offset + 4u * (size_t)L->m;
+}
+
+/* Window `i` of a validated payload (or of one whose entry and block header were checked). */
+static void read_window(const uint8_t* payload, const layout* L, uint32_t i, window* w) {
+    const uint8_t* e = L->window_table + (size_t)i * WINDOW_ENTRY;
+    const uint8_t* b = payload + mcd_rd_u32(e + 8);
+    w->start = mcd_rd_u32(e);
+    w->count = mcd_rd_u32(e + 4);
+    w->k = mcd_rd_u16(b);
+    w->h = mcd_rd_u16(b + 2);
+    w->bits = b[4];
+    w->d = 2u * w->k + 1u;
+    w->weights = weight_count(w->d, w->h, L->m);
+    w->steps = b + 8;
+    w->freqs = b + WINDOW_HEADER;
+    w->stream = w->freqs + align4z(2u * (size_t)w->k);
 }
 
 static int bounded(float v, float limit) {
@@ -62,30 +96,52 @@ static int bounded(float v, float limit) {
 }
 
 /* ---------------------------------------------------------------- validation */
+static mcd_result check_window(const mcd_clip_view* v, const layout* L, uint32_t i, uint32_t start,
+                               uint32_t block_offset, uint32_t* next_offset) {
+    const uint8_t* e = L->window_table + (size_t)i * WINDOW_ENTRY;
+    const uint8_t* b;
+    window w;
+    uint64_t stream_bits, pos, end;
+    uint32_t c, count = mcd_rd_u32(e + 4), off = mcd_rd_u32(e + 8), size = mcd_rd_u32(e + 12);
+    /* Windows tile the clip in order, consecutive ones sharing one frame; blocks are packed. */
+    if (mcd_rd_u32(e) != start || count == 0 || (uint64_t)start + count > L->frames) return MCD_ERROR_MALFORMED;
+    if (count == 1 && L->frames != 1) return MCD_ERROR_MALFORMED;
+    if (off != block_offset || size < WINDOW_HEADER || (uint64_t)off + size > v->payload_size) return MCD_ERROR_MALFORMED;
+    b = v->payload + off;
+    if (mcd_rd_u16(b) > MAX_K || mcd_rd_u16(b + 2) == 0 || mcd_rd_u16(b + 2) > MAX_H) return MCD_ERROR_MALFORMED;
+    if (b[4] < 2u || b[4] > 16u || b[5] || b[6] || b[7]) return MCD_ERROR_MALFORMED;
+    if (block_bytes(mcd_rd_u16(b), mcd_rd_u16(b + 2), L->m, b[4]) != size) return MCD_ERROR_MALFORMED;
+    read_window(v->payload, L, i, &w);
+    for (c = 0; c < 6; ++c) {
+        float s = mcd_rd_f32(w.steps + 4 * c);
+        /* |code| <= 2^(bits-1): every dequantized weight stays within MAX_WEIGHT. */
+        if (!mcd_finite(s) || !(s > 0.0f) || s * (float)(1u << (w.bits - 1u)) > MAX_WEIGHT) return MCD_ERROR_MALFORMED;
+    }
+    for (c = 0; c < w.k; ++c)
+        if (mcd_rd_u16(w.freqs + 2 * c) == 0) return MCD_ERROR_MALFORMED;
+    if ((w.k & 1u) && mcd_rd_u16(w.freqs + 2 * w.k) != 0) return MCD_ERROR_MALFORMED;
+    /* Unused bits of the stream's last byte and the padding after it are zero. */
+    stream_bits = (uint64_t)w.weights * w.bits;
+    end = (uint64_t)(b + size - w.stream);
+    if ((stream_bits & 7u) && (w.stream[stream_bits >> 3] >> (stream_bits & 7u)) != 0) return MCD_ERROR_MALFORMED;
+    for (pos = (stream_bits + 7u) / 8u; pos < end; ++pos)
+        if (w.stream[pos] != 0) return MCD_ERROR_MALFORMED;
+    *next_offset = off + size;
+    return MCD_OK;
+}
+
 static mcd_result neural_validate(const mcd_clip_view* v) {
     const uint8_t* p = v->payload;
     layout L;
-    uint64_t stream_bits, stream_bytes, pos;
-    uint32_t i, c;
+    uint32_t i, c, start = 0, offset;
     if (v->payload_size < HEADER) return MCD_ERROR_MALFORMED;
     /* Counts first: nothing below forms a pointer from a count that was not checked. */
     if (mcd_rd_u32(p) != v->frame_count || mcd_rd_u32(p + 4) != v->node_count) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u16(p + 8) > MAX_K || mcd_rd_u16(p + 10) == 0 || mcd_rd_u16(p + 10) > MAX_H) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u16(p + 12) > 7u * v->node_count || mcd_rd_u16(p + 14) > v->node_count) return MCD_ERROR_MALFORMED;
-    if (p[16] < 2u || p[16] > 16u || p[17] || p[18] || p[19]) return MCD_ERROR_MALFORMED;
+    if (mcd_rd_u16(p + 8) > 7u * v->node_count || mcd_rd_u16(p + 10) > v->node_count) return MCD_ERROR_MALFORMED;
+    if (mcd_rd_u16(p + 12) == 0 || mcd_rd_u16(p + 12) > v->frame_count || mcd_rd_u16(p + 14) != 0) return MCD_ERROR_MALFORMED;
     read_layout(p, &L);
-    stream_bits = (uint64_t)L.weights * L.bits;
-    stream_bytes = align4z((size_t)((stream_bits + 7u) / 8u));
-    if ((uint64_t)head_bytes(L.nodes, L.k, L.m, L.refs) + stream_bytes != v->payload_size) return MCD_ERROR_MALFORMED;
+    if ((uint64_t)head_bytes(L.nodes, L.m, L.refs, L.windows) > v->payload_size) return MCD_ERROR_MALFORMED;
 
-    for (i = 0; i < 6; ++i) {
-        float s = mcd_rd_f32(L.steps + 4 * i);
-        /* |code| <= 2^(bits-1): every dequantized weight stays within MAX_WEIGHT. */
-        if (!mcd_finite(s) || !(s > 0.0f) || s * (float)(1u << (L.bits - 1u)) > MAX_WEIGHT) return MCD_ERROR_MALFORMED;
-    }
-    for (i = 0; i < L.k; ++i)
-        if (mcd_rd_u16(L.freqs + 2 * i) == 0) return MCD_ERROR_MALFORMED;
-    if ((L.k & 1u) && mcd_rd_u16(L.freqs + 2 * L.k) != 0) return MCD_ERROR_MALFORMED;
     for (i = 0; i < L.refs; ++i) {
         const uint8_t* q = L.ref_table + 16u * i;
         float n = 0.0f;
@@ -122,46 +178,79 @@ static mcd_result neural_validate(const mcd_clip_view* v) {
             return MCD_ERROR_MALFORMED;
         }
     }
-    /* Unused bits of the stream's last byte and the padding after it are zero. */
-    pos = stream_bits;
-    if ((pos & 7u) && (L.stream[pos >> 3] >> (pos & 7u)) != 0) return MCD_ERROR_MALFORMED;
-    for (pos = (stream_bits + 7u) / 8u; pos < stream_bytes; ++pos)
-        if (L.stream[pos] != 0) return MCD_ERROR_MALFORMED;
+    offset = (uint32_t)head_bytes(L.nodes, L.m, L.refs, L.windows);
+    for (i = 0; i < L.windows; ++i) {
+        mcd_result r = check_window(v, &L, i, start, offset, &offset);
+        if (r != MCD_OK) return r;
+        start += mcd_rd_u32(L.window_table + (size_t)i * WINDOW_ENTRY + 4) - 1u;
+    }
+    /* The last window ends on the last frame, the last block at the payload's end. */
+    if (start != L.frames - 1u || offset != v->payload_size) return MCD_ERROR_MALFORMED;
     return MCD_OK;
 }
 
 /* ---------------------------------------------------------------- scratch */
-/* Layout: u32 header[4] | f32 weights[P] | f32 features[D] | f32 hidden0[H] | f32 hidden1[H] | f32 out[M] */
+/* Layout: u32 header[4] (window held, or NO_WINDOW) | f32 weights[max P] | f32 features[max D]
+ * | f32 hidden0[max H] | f32 hidden1[max H] | f32 out[M]. Sized for the largest window, so one
+ * scratch serves every window; a sample in another window re-expands its weights. */
 static size_t neural_scratch_size(const mcd_clip_view* v) {
     layout L;
+    window w;
+    uint32_t i, weights = 0, d = 0, h = 0;
     read_layout(v->payload, &L);
-    return align16z(16u + 4u * ((size_t)L.weights + L.d + 2u * (size_t)L.h + L.m));
+    for (i = 0; i < L.windows; ++i) {
+        read_window(v->payload, &L, i, &w);
+        if (w.weights > weights) weights = w.weights;
+        if (w.d > d) d = w.d;
+        if (w.h > h) h = w.h;
+    }
+    return align16z(16u + 4u * ((size_t)weights + d + 2u * (size_t)h + L.m));
+}
+
+/* The window that samples frame position x: the last one starting at or before x (a shared
+ * border frame belongs to the later window). `hint` (the window held) is tried first, so
+ * sequential playback does not search. */
+static uint32_t find_window(const layout* L, float x, uint32_t hint) {
+    uint32_t lo = 0, hi = L->windows - 1u;
+    if (hint < L->windows) {
+        const uint8_t* e = L->window_table + (size_t)hint * WINDOW_ENTRY;
+        float s = (float)mcd_rd_u32(e);
+        if (x >= s && (hint + 1u == L->windows || x < (float)mcd_rd_u32(e + WINDOW_ENTRY))) return hint;
+    }
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo + 1u) / 2u;
+        if ((float)mcd_rd_u32(L->window_table + (size_t)mid * WINDOW_ENTRY) <= x)
+            lo = mid;
+        else
+            hi = mid - 1u;
+    }
+    return lo;
 }
 
 /* Expand the bit-packed codes into floats: code - 2^(bits-1), times its tensor's step. */
-static void expand_weights(const layout* L, float* w) {
+static void expand_weights(const window* W, uint32_t m, float* w) {
     uint32_t counts[6], t, i, n = 0, have = 0;
-    uint32_t mask = (1u << L->bits) - 1u, bias = 1u << (L->bits - 1u);
+    uint32_t mask = (1u << W->bits) - 1u, bias = 1u << (W->bits - 1u);
     uint64_t acc = 0;
-    const uint8_t* s = L->stream;
-    counts[0] = L->h * L->d;
-    counts[1] = L->h;
-    counts[2] = L->h * L->h;
-    counts[3] = L->h;
-    counts[4] = L->m * L->h;
-    counts[5] = L->m;
+    const uint8_t* s = W->stream;
+    counts[0] = W->h * W->d;
+    counts[1] = W->h;
+    counts[2] = W->h * W->h;
+    counts[3] = W->h;
+    counts[4] = m * W->h;
+    counts[5] = m;
     for (t = 0; t < 6; ++t) {
-        float step = mcd_rd_f32(L->steps + 4 * t);
+        float step = mcd_rd_f32(W->steps + 4 * t);
         for (i = 0; i < counts[t]; ++i) {
             uint32_t u;
             /* Validation sized the stream for every code, so these byte loads stay inside it. */
-            while (have < L->bits) {
+            while (have < W->bits) {
                 acc |= (uint64_t)*s++ << have;
                 have += 8u;
             }
             u = (uint32_t)acc & mask;
-            acc >>= L->bits;
-            have -= L->bits;
+            acc >>= W->bits;
+            have -= W->bits;
             w[n++] = (float)((int32_t)u - (int32_t)bias) * step;
         }
     }
@@ -201,40 +290,65 @@ static mcd_quat ref_quat(const layout* L, uint32_t index) {
 static mcd_result neural_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
                                 void* scratch, int fresh) {
     layout L;
+    window W;
+    uint32_t* held = (uint32_t*)scratch;
     float *w, *feat, *h0, *h1, *y;
     const float *W0, *b0, *W1, *b1, *W2, *b2;
     double t;
-    uint32_t i, k;
+    uint32_t i, k, index, max_weights, max_d, max_h;
     (void)flags;
     read_layout(v->payload, &L);
+    if (fresh) held[0] = NO_WINDOW;
+    index = find_window(&L, x, held[0]);
+    read_window(v->payload, &L, index, &W);
+    /* The buffers after the weights are placed for the largest window (the scratch's size). */
+    max_weights = (uint32_t)held[1];
+    max_d = (uint32_t)held[2];
+    max_h = (uint32_t)held[3];
+    if (held[0] == NO_WINDOW) {
+        window o;
+        max_weights = max_d = max_h = 0;
+        for (i = 0; i < L.windows; ++i) {
+            read_window(v->payload, &L, i, &o);
+            if (o.weights > max_weights) max_weights = o.weights;
+            if (o.d > max_d) max_d = o.d;
+            if (o.h > max_h) max_h = o.h;
+        }
+        held[1] = max_weights;
+        held[2] = max_d;
+        held[3] = max_h;
+    }
     w = (float*)((uint8_t*)scratch + 16);
-    feat = w + L.weights;
-    h0 = feat + L.d;
-    h1 = h0 + L.h;
-    y = h1 + L.h;
-    if (fresh) expand_weights(&L, w);
+    feat = w + max_weights;
+    h0 = feat + max_d;
+    h1 = h0 + max_h;
+    y = h1 + max_h;
+    if (held[0] != index) {
+        expand_weights(&W, L.m, w);
+        held[0] = index;
+    }
     W0 = w;
-    b0 = W0 + (size_t)L.h * L.d;
-    W1 = b0 + L.h;
-    b1 = W1 + (size_t)L.h * L.h;
-    W2 = b1 + L.h;
-    b2 = W2 + (size_t)L.m * L.h;
+    b0 = W0 + (size_t)W.h * W.d;
+    W1 = b0 + W.h;
+    b1 = W1 + (size_t)W.h * W.h;
+    W2 = b1 + W.h;
+    b2 = W2 + (size_t)L.m * W.h;
 
-    /* Eq. 1 in double: pi k t reaches hundreds of radians, where a float phase would cost
-     * more accuracy than the whole network keeps. */
-    t = L.frames > 1u ? (double)x / (double)(L.frames - 1u) : 0.0;
+    /* Eq. 1 in double on the window's own time: pi k t reaches hundreds of radians, where a
+     * float phase would cost more accuracy than the whole network keeps. */
+    t = W.count > 1u ? ((double)x - (double)W.start) / (double)(W.count - 1u) : 0.0;
     feat[0] = (float)t;
-    for (k = 0; k < L.k; ++k) {
-        double phase = PI_D * (double)mcd_rd_u16(L.freqs + 2 * k) * t;
+    for (k = 0; k < W.k; ++k) {
+        double phase = PI_D * (double)mcd_rd_u16(W.freqs + 2 * k) * t;
         feat[1 + 2 * k] = (float)sin(phase);
         feat[2 + 2 * k] = (float)cos(phase);
     }
     /* Eq. 2. */
-    dense(W0, b0, feat, L.h, L.d, h0);
-    for (i = 0; i < L.h; ++i) h0[i] = elu(h0[i]);
-    dense(W1, b1, h0, L.h, L.h, h1);
-    for (i = 0; i < L.h; ++i) h1[i] = elu(h1[i]);
-    dense(W2, b2, h1, L.m, L.h, y);
+    dense(W0, b0, feat, W.h, W.d, h0);
+    for (i = 0; i < W.h; ++i) h0[i] = elu(h0[i]);
+    dense(W1, b1, h0, W.h, W.h, h1);
+    for (i = 0; i < W.h; ++i) h1[i] = elu(h1[i]);
+    dense(W2, b2, h1, L.m, W.h, y);
     for (i = 0; i < L.m; ++i)
         y[i] = clamp_abs((float)((double)mcd_rd_f32(L.offset + 4 * i) + (double)mcd_rd_f32(L.scale + 4 * i) * (double)y[i]));
 

@@ -22,3 +22,8 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind) {
         if (k_codecs[i]->section_kind == section_kind) return k_codecs[i];
     return NULL;
 }
+
+uint32_t mcd_codec_section_version(uint32_t codec) {
+    /* NEUR 2: windowed networks. NEUR 1 (one network per clip) was never released. */
+    return codec == MCD_CODEC_NEURAL ? 2u : 1u;
+}

@@ -228,7 +228,7 @@ static mcd_result resolve_clip(const mcd_asset* a, uint32_t clip, mcd_clip_view*
     if (!ops) return MCD_ERROR_UNSUPPORTED;
     e = a->data + a->section_table + (size_t)section * MCD_SECTION_ENTRY_SIZE;
     if (mcd_rd_u32(e) != ops->section_kind) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(e + 4) != 1) return MCD_ERROR_UNSUPPORTED;
+    if (mcd_rd_u32(e + 4) != mcd_codec_section_version(codec)) return MCD_ERROR_UNSUPPORTED;
     if ((poff & 3u) != 0 || (uint64_t)poff + psize > mcd_rd_u32(e + 12)) return MCD_ERROR_MALFORMED;
     skel_off = mcd_skeleton_offset(a, skel);
     v->section = a->data + mcd_rd_u32(e + 8);

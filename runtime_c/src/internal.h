@@ -165,6 +165,8 @@ typedef struct mcd_codec_ops {
 /* The codec table (codecs.c); NULL for an unknown codec id or section kind. */
 const mcd_codec_ops* mcd_find_codec(uint32_t codec);
 const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
+/* The layout version of a codec's section this runtime reads (docs/FORMAT.md). */
+uint32_t mcd_codec_section_version(uint32_t codec);
 
 #define MCD_MAX_CODEC_ID 7u /* resident_offsets[] in mcd_asset is indexed by codec id */
 

@@ -82,8 +82,9 @@ _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
         "encode_seconds": r.seconds}),
     "rma": _library("rma"),
     "neural": _per_clip("neural", "NeuralSettings", lambda r: {
-        "frequencies": r.freqs, "weight_bits": r.bits, "parameters": r.parameters,
-        "stages": r.stages, "encode_seconds": r.seconds}),
+        "windows": [[w["start"], w["frames"], w["K"], w["bits"]] for w in r.windows],
+        "frequencies": r.frequency_counts, "parameters": r.parameters, "splits": r.splits,
+        "encode_seconds": r.seconds}),
     "fk-wavelet": _per_clip("fk_wavelet", "FkWaveletSettings", lambda r: {
         "levels": r.levels, "tracks": r.tracks, "repairs": r.repairs, "encode_seconds": r.seconds}),
     "ik-predict": _per_clip("ik_predict", "IkPredictSettings", lambda r: {

@@ -39,8 +39,11 @@ except ImportError:  # pragma: no cover - optional: only makes training faster
 
 ROT_IDENTITY, ROT_CONSTANT, ROT_QUATERNION, ROT_AXIS_ANGLE = 0, 1, 2, 3
 TRANS_REST, TRANS_OUTPUT = 0, 2
-HEADER_SIZE = 44
+SECTION_VERSION = 2  # container.CODEC_SECTION_VERSIONS: windowed networks
+HEADER_SIZE = 16
 NODE_ENTRY = 8
+WINDOW_ENTRY = 16
+WINDOW_HEADER = 32
 MAX_K = 32            # format limit on frequencies (docs/FORMAT.md)
 MAX_WEIGHT = 1.0e4    # format bound on |dequantized weight|
 MAX_ABS_VALUE = 1.0e7
@@ -59,8 +62,13 @@ class NeuralSettings:
     ----------
     tolerance : Tolerance
         Max world-space position error per node, every frame (cm).
-    max_frequencies : int, default 16
-        Cap on K; the tolerance not met with K frequencies raises :class:`ToleranceNotMet`.
+    max_frequencies : int, default 3
+        Cap on K per window; a window that misses the tolerance with K frequencies is halved
+        (a two-frame window that misses raises :class:`ToleranceNotMet`).
+    window_frames : int, default 240
+        Longest first window (frames); windows are only ever split further.
+    jump_cm : float, default 20
+        A step larger than this between two frames (any point) gets its own two-frame window.
     iterations : int, default 500
         L-BFGS iterations per stage of Algorithm 1.
     seed : int, default 1
@@ -75,7 +83,9 @@ class NeuralSettings:
     """
 
     tolerance: Tolerance
-    max_frequencies: int = 16
+    max_frequencies: int = 3
+    window_frames: int = 240
+    jump_cm: float = 20.0
     iterations: int = 500
     seed: int = 1
     restart: bool = True
@@ -90,6 +100,8 @@ class NeuralSettings:
             raise ValueError("weight bits must satisfy 2 <= min_bits <= max_bits <= 16")
         if self.frequencies not in ("adaptive", "naive"):
             raise ValueError(f"frequencies must be 'adaptive' or 'naive', got {self.frequencies!r}")
+        if self.window_frames < 2:
+            raise ValueError("window_frames must be at least 2")
         if self.iterations < 1:
             raise ValueError("iterations must be at least 1")
 
@@ -369,75 +381,112 @@ def quantize(p: dict[str, np.ndarray], bits: int) -> QuantizedNetwork:
 
 
 @dataclass
+class WindowNetwork:
+    """One window's network: frames ``start ... start + frames - 1`` on its own time axis."""
+
+    start: int
+    frames: int
+    freqs: list[int]
+    net: QuantizedNetwork
+
+
+@dataclass
 class NeuralModel:
     """Everything a payload holds."""
 
     frames: int
     nodes: int
-    freqs: list[int]
     layout: PoseLayout
     scale: np.ndarray    # (M,) float32-exact
     offset: np.ndarray   # (M,) float32-exact
-    net: QuantizedNetwork
+    windows: list[WindowNetwork]
+
+    def window_index(self, x: np.ndarray) -> np.ndarray:
+        """The window sampling each frame position: the last one starting at or before it
+        (a shared border frame belongs to the later window), as the runtime picks it."""
+        starts = np.array([w.start for w in self.windows], dtype=np.float64)
+        return np.maximum(np.searchsorted(starts, np.asarray(x, dtype=np.float64), side="right") - 1, 0)
 
     def parameters(self, x: np.ndarray) -> np.ndarray:
         """Pose parameters (len(x), M) at frame positions x (the reference evaluation)."""
-        y = forward(self.net.weights(), fourier_features(x, self.frames, self.freqs))
+        x = np.asarray(x, dtype=np.float64)
+        y = np.zeros((x.size, self.layout.outputs))
+        which = self.window_index(x)
+        for i in np.unique(which):
+            w, sel = self.windows[i], which == i
+            y[sel] = forward(w.net.weights(), fourier_features(x[sel] - w.start, w.frames, w.freqs))
         return np.clip(self.offset + self.scale * y, -MAX_ABS_VALUE, MAX_ABS_VALUE)
 
 
-def write_payload(model: NeuralModel) -> bytes:
-    L, net = model.layout, model.net
-    k, m = len(model.freqs), L.outputs
-    h = net.codes["W0"].shape[0]
-    out = bytearray(struct.pack("<IIHHHHB3x", model.frames, model.nodes, k, h, m, len(L.refs), net.bits))
+def _window_block(w: WindowNetwork) -> bytes:
+    net, k = w.net, len(w.freqs)
+    out = bytearray(struct.pack("<HHB3x", k, net.codes["W0"].shape[0], net.bits))
     out += struct.pack("<6f", *net.steps)
-    for (rm, tm, ro, to), ri in zip(L.entries, L.ref_index):
-        out += struct.pack("<BBHHH", rm, tm, ro if rm in (ROT_QUATERNION, ROT_AXIS_ANGLE) else 0,
-                           to if tm == TRANS_OUTPUT else 0, ri if rm in (ROT_CONSTANT, ROT_AXIS_ANGLE) else 0)
-    out += struct.pack(f"<{k}H", *model.freqs)
-    if k % 2:
-        out += b"\0\0"
-    out += np.asarray(L.refs, dtype="<f4").tobytes()
-    out += np.asarray(model.scale, dtype="<f4").tobytes()
-    out += np.asarray(model.offset, dtype="<f4").tobytes()
+    out += struct.pack(f"<{k}H", *w.freqs) + bytes(2 * (k % 2))
     bw = BitWriter()
     bias = 1 << (net.bits - 1)
     for name in TENSORS:
         bw.write(net.codes[name].ravel() + bias, net.bits)
     stream = bw.getvalue()
-    out += stream + bytes(-len(stream) % 4)
-    return bytes(out)
+    return bytes(out + stream + bytes(-len(stream) % 4))
+
+
+def write_payload(model: NeuralModel) -> bytes:
+    """docs/FORMAT.md, NEUR version 2: clip-wide layout, window table, window blocks."""
+    L = model.layout
+    m = L.outputs
+    out = bytearray(struct.pack("<IIHHHH", model.frames, model.nodes, m, len(L.refs), len(model.windows), 0))
+    for (rm, tm, ro, to), ri in zip(L.entries, L.ref_index):
+        out += struct.pack("<BBHHH", rm, tm, ro if rm in (ROT_QUATERNION, ROT_AXIS_ANGLE) else 0,
+                           to if tm == TRANS_OUTPUT else 0, ri if rm in (ROT_CONSTANT, ROT_AXIS_ANGLE) else 0)
+    out += np.asarray(L.refs, dtype="<f4").tobytes()
+    out += np.asarray(model.scale, dtype="<f4").tobytes()
+    out += np.asarray(model.offset, dtype="<f4").tobytes()
+    blocks = [_window_block(w) for w in model.windows]
+    at = len(out) + WINDOW_ENTRY * len(blocks)
+    for w, blk in zip(model.windows, blocks):
+        out += struct.pack("<IIII", w.start, w.frames, at, len(blk))
+        at += len(blk)
+    return bytes(out + b"".join(blocks))
+
+
+def _read_codes(payload: bytes, o: int, shapes: list[tuple[int, ...]], bits: int) -> dict[str, np.ndarray]:
+    counts = [int(np.prod(s)) for s in shapes]
+    total = sum(counts)
+    nbytes = (total * bits + 7) // 8
+    bitsarr = np.unpackbits(np.frombuffer(payload, np.uint8, nbytes, o), bitorder="little")
+    vals = bitsarr[: total * bits].reshape(total, bits).astype(np.int64) @ (1 << np.arange(bits))
+    vals -= 1 << (bits - 1)
+    codes, c = {}, 0
+    for name, s, cnt in zip(TENSORS, shapes, counts):
+        codes[name] = vals[c:c + cnt].reshape(s)
+        c += cnt
+    return codes
 
 
 def read_payload(payload: bytes) -> NeuralModel:
     """Parse a payload the encoder wrote (trusted input: the reference decoder for tests)."""
-    f, n, k, h, m, r, bits = struct.unpack_from("<IIHHHHB", payload, 0)
-    steps = np.array(struct.unpack_from("<6f", payload, 20))
+    f, n, m, r, nw, _ = struct.unpack_from("<IIHHHH", payload, 0)
     o = HEADER_SIZE
     table = np.frombuffer(payload, "<u2", 4 * n, o).reshape(n, 4).astype(np.int64)
     raw = np.frombuffer(payload, np.uint8, 8 * n, o).reshape(n, 8)
     o += NODE_ENTRY * n
-    freqs = [int(v) for v in np.frombuffer(payload, "<u2", k, o)]
-    o += 2 * k + (2 if k % 2 else 0)
     refs = np.frombuffer(payload, "<f4", 4 * r, o).reshape(r, 4).astype(np.float64)
     o += 16 * r
     scale = np.frombuffer(payload, "<f4", m, o).astype(np.float64)
     offset = np.frombuffer(payload, "<f4", m, o + 4 * m).astype(np.float64)
     o += 8 * m
-    d = 2 * k + 1
-    counts = [int(np.prod(s)) for s in _shapes(d, h, m)]
-    bitsarr = np.unpackbits(np.frombuffer(payload, np.uint8, len(payload) - o, o), bitorder="little")
-    total = sum(counts)
-    vals = bitsarr[: total * bits].reshape(total, bits).astype(np.int64) @ (1 << np.arange(bits))
-    vals -= 1 << (bits - 1)
-    codes, c = {}, 0
-    for name, s, cnt in zip(TENSORS, _shapes(d, h, m), counts):
-        codes[name] = vals[c:c + cnt].reshape(s)
-        c += cnt
+    windows = []
+    for i in range(nw):
+        start, count, at, _size = struct.unpack_from("<IIII", payload, o + WINDOW_ENTRY * i)
+        k, h, bits = struct.unpack_from("<HHB", payload, at)
+        steps = np.array(struct.unpack_from("<6f", payload, at + 8))
+        freqs = [int(v) for v in np.frombuffer(payload, "<u2", k, at + WINDOW_HEADER)]
+        codes = _read_codes(payload, at + WINDOW_HEADER + 2 * k + 2 * (k % 2), _shapes(2 * k + 1, h, m), bits)
+        windows.append(WindowNetwork(start, count, freqs, QuantizedNetwork(bits, steps, codes)))
     entries = np.stack((raw[:, 0], raw[:, 1], table[:, 1], table[:, 2]), axis=1).astype(np.int64)
     layout = PoseLayout(entries, table[:, 3].copy(), refs, np.ones(m), np.zeros((f, m)))
-    return NeuralModel(f, n, freqs, layout, scale, offset, QuantizedNetwork(bits, steps, codes))
+    return NeuralModel(f, n, layout, scale, offset, windows)
 
 
 def reference_pose(payload: bytes, motion: Motion, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -452,12 +501,15 @@ def reference_pose(payload: bytes, motion: Motion, x: np.ndarray) -> tuple[np.nd
 class NeuralClipResult:
     payload: bytes
     errors_units: np.ndarray
-    freqs: list[int]
-    bits: int
-    parameters: int
-    stages: int
+    windows: list[dict[str, object]]   # per window: start, frames, K, freqs, bits, stages, seconds
+    parameters: int                    # trained weights over all windows
+    splits: int                        # windows that missed within the K cap and were halved
     seconds: float
     history: list[dict[str, float]] = field(default_factory=list)
+
+    @property
+    def frequency_counts(self) -> list[int]:
+        return [int(w["K"]) for w in self.windows]
 
 
 def _normalisation(layout: PoseLayout) -> tuple[np.ndarray, np.ndarray]:
@@ -489,78 +541,128 @@ def algorithm1(z: np.ndarray, frames: int, mode: str, k_max: int, iterations: in
         p = grow_network(p, rng)
 
 
+def initial_windows(world: np.ndarray, cm_per_unit: float, window_frames: int, jump_cm: float) -> list[tuple[int, int]]:
+    """(start, frames) of the first windows: cut where any point jumps more than ``jump_cm``
+    between two frames (CMU's synthetic T-pose frame 0: a network would spend frequencies on
+    the step), each such pair its own two-frame window; the rest in even pieces of at most
+    ``window_frames`` frames. Consecutive windows share their border frame."""
+    frames = world.shape[0]
+    if frames == 1:
+        return [(0, 1)]
+    step = np.max(np.linalg.norm(np.diff(world, axis=0), axis=-1), axis=1) * cm_per_unit
+    cuts = sorted({0, frames - 1} | {int(i) for i in np.flatnonzero(step > jump_cm)}
+                  | {int(i) + 1 for i in np.flatnonzero(step > jump_cm)})
+    out: list[tuple[int, int]] = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        pieces = -(-(b - a) // max(window_frames - 1, 1))
+        edges = [a + round(i * (b - a) / pieces) for i in range(pieces + 1)]
+        out += [(s, e - s + 1) for s, e in zip(edges[:-1], edges[1:])]
+    return out
+
+
 def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
                 check: Callable[[bytes], np.ndarray],
                 on_stage: Callable[[dict[str, float]], None] | None = None) -> NeuralClipResult:
-    """Algorithm 1 on one clip, stopping at the first stage whose quantized network meets the
-    tolerance through the runtime; ``check(payload)`` is the (F, N) world error there, in
-    file units."""
+    """The clip in windows, Algorithm 1 per window (adaptive split: a window that misses the
+    tolerance within the K cap is halved), then the whole payload checked through the runtime
+    (``check(payload)``: the (F, N) world error there, in file units); a window whose frames
+    miss there gets more weight bits."""
     started = time.perf_counter()
+    sk = motion.skeleton
     layout = pose_layout(motion)
-    tol_units = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+    tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
     frames = motion.frame_count
     scale, offset = _normalisation(layout)
     z = (layout.targets - offset) / scale
-    world = forward_kinematics(motion.skeleton, motion.rotations, motion.translations)[1]
-    x_all = np.arange(frames, dtype=np.float64)
+    world = forward_kinematics(sk, motion.rotations, motion.translations)[1]
 
-    def world_error(y: np.ndarray) -> np.ndarray:
+    def window_error(s: int, y: np.ndarray) -> np.ndarray:
         rot, trans = local_pose(layout, motion, y)
-        return np.linalg.norm(forward_kinematics(motion.skeleton, rot, trans)[1] - world, axis=-1)
+        return np.linalg.norm(forward_kinematics(sk, rot, trans)[1] - world[s:s + len(y)], axis=-1)
 
     history: list[dict[str, float]] = []
-    err = np.full(1, np.inf)
-    stages = algorithm1(z, frames, settings.frequencies, settings.max_frequencies, settings.iterations,
-                        settings.restart, np.random.default_rng(settings.seed))
+    done: list[tuple[WindowNetwork, dict[str, np.ndarray], dict[str, object]]] = []
+    queue = initial_windows(world, cm_per_unit, settings.window_frames, settings.jump_cm)
+    splits = 0
     # One BLAS thread for the whole search, not only the L-BFGS: results then do not depend
     # on the machine's thread count.
     with _one_thread():
-        for stage, (freqs, p) in enumerate(stages, start=1):
-            err = world_error(offset + scale * forward(p, fourier_features(x_all, frames, freqs)))
-            rec = {"K": len(freqs), "max_error_cm": float(np.max(err) * cm_per_unit),
-                   "seconds": time.perf_counter() - started}
-            history.append(rec)
-            if on_stage:
-                on_stage(rec)
-            # Leave a little of the tolerance to the weights' quantization.
-            if np.max(err / tol_units) <= 0.95:
-                found = _quantize_to_tolerance(motion, layout, freqs, scale, offset, p, settings,
-                                               tol_units, check, world_error)
-                if found is not None:
-                    payload, c_err, bits = found
-                    return NeuralClipResult(payload, c_err, freqs, bits, _pack(p).size, stage,
-                                            time.perf_counter() - started, history)
-    raise ToleranceNotMet(f"{motion.name}: {np.max(err) * cm_per_unit:.3f} cm with K = "
-                          f"{settings.max_frequencies} frequencies (the cap)")
+        while queue:
+            s, n = queue.pop(0)
+            t0 = time.perf_counter()
+            found = _fit_window(s, n, z, layout, scale, offset, settings, tol_units, window_error, history, on_stage)
+            if found is None:
+                if n <= 2:
+                    raise ToleranceNotMet(f"{motion.name}: frames {s}-{s + n - 1} miss the tolerance "
+                                          f"with K = {settings.max_frequencies} frequencies (the cap)")
+                half = (n - 1) // 2
+                queue[:0] = [(s, half + 1), (s + half, n - half)]
+                splits += 1
+                continue
+            w, p, stages = found
+            done.append((w, p, {"start": s, "frames": n, "K": len(w.freqs), "freqs": list(w.freqs),
+                                "bits": w.net.bits, "stages": stages, "seconds": time.perf_counter() - t0}))
+        model = NeuralModel(frames, sk.node_count, layout, scale, offset, [d[0] for d in done])
+        while True:
+            payload = write_payload(model)
+            c_err = check(payload)
+            over = np.any(c_err > tol_units[None, :], axis=1)
+            if not over.any():
+                break
+            # The Python model met the tolerance with a margin: a miss here is a rounding
+            # difference on a frame at the edge; one more bit for the windows holding it.
+            for i in np.unique(model.window_index(np.flatnonzero(over))):
+                w, p, info = done[i]
+                if w.net.bits >= settings.max_bits:
+                    raise ToleranceNotMet(f"{motion.name}: window at frame {w.start} misses through the runtime")
+                w.net = quantize(p, w.net.bits + 1)
+                info["bits"] = w.net.bits
+    params = sum(_pack(d[1]).size for d in done)
+    return NeuralClipResult(payload, c_err, [d[2] for d in done], params, splits,
+                            time.perf_counter() - started, history)
 
 
-def _quantize_to_tolerance(motion: Motion, layout: PoseLayout, freqs: list[int], scale: np.ndarray,
-                           offset: np.ndarray, p: dict[str, np.ndarray], settings: NeuralSettings,
-                           tol_units: np.ndarray, check: Callable[[bytes], np.ndarray],
-                           world_error: Callable[[np.ndarray], np.ndarray]
-                           ) -> tuple[bytes, np.ndarray, int] | None:
-    """The fewest weight bits whose network meets the tolerance through the runtime."""
-    for bits in range(settings.min_bits, settings.max_bits + 1):
-        net = quantize(p, bits)
-        model = NeuralModel(motion.frame_count, motion.skeleton.node_count, list(freqs), layout,
-                            scale, offset, net)
-        y = model.parameters(np.arange(motion.frame_count, dtype=np.float64))
-        if np.any(world_error(y) > tol_units[None, :] * 0.999):
-            continue  # the Python model already misses: no need to ask the runtime
-        payload = write_payload(model)
-        c_err = check(payload)
-        if np.all(c_err <= tol_units[None, :]):
-            return payload, c_err, bits
+def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.ndarray, offset: np.ndarray,
+                settings: NeuralSettings, tol_units: np.ndarray,
+                window_error: Callable[[int, np.ndarray], np.ndarray], history: list[dict[str, float]],
+                on_stage: Callable[[dict[str, float]], None] | None
+                ) -> tuple[WindowNetwork, dict[str, np.ndarray], int] | None:
+    """Algorithm 1 on frames s ... s + n - 1 until the quantized network (fewest bits) meets
+    the tolerance in the Python model of the runtime; None when K reaches the cap first."""
+    started = time.perf_counter()
+    x = np.arange(n, dtype=np.float64)
+    # Seeded by the window too: the same seed gives the same asset, windows differ.
+    rng = np.random.default_rng([settings.seed, s, n])
+    stages = algorithm1(z[s:s + n], n, settings.frequencies, settings.max_frequencies, settings.iterations,
+                        settings.restart, rng)
+    for stage, (freqs, p) in enumerate(stages, start=1):
+        err = window_error(s, offset + scale * forward(p, fourier_features(x, n, freqs)))
+        rec = {"start": s, "frames": n, "K": len(freqs), "max_error_cm": float(np.max(err / tol_units)),
+               "seconds": time.perf_counter() - started}
+        history.append(rec)
+        if on_stage:
+            on_stage(rec)
+        # Leave a little of the tolerance to the weights' quantization.
+        if np.max(err / tol_units) > 0.95:
+            continue
+        for bits in range(settings.min_bits, settings.max_bits + 1):
+            w = WindowNetwork(s, n, list(freqs), quantize(p, bits))
+            y = offset + scale * forward(w.net.weights(), fourier_features(x, n, freqs))
+            y = np.clip(y, -MAX_ABS_VALUE, MAX_ABS_VALUE)
+            # A small margin for the runtime's float32 arithmetic (agrees to ~1e-4 cm).
+            if np.all(window_error(s, y) <= tol_units[None, :] * 0.999):
+                return w, p, stage
     return None
 
 
 def fit_stages(motion: Motion, mode: str, k_max: int, iterations: int, seed: int = 1,
                restart: bool = True) -> Iterator[NeuralModel]:
-    """The model (16-bit weights) after every stage of :func:`algorithm1`, K = 0 ... k_max,
-    without the tolerance test: for the rate/error curves of bench/bench_neural.py."""
+    """The one-window model (16-bit weights) after every stage of :func:`algorithm1`, K = 0 ...
+    k_max, without the tolerance test: for the rate/error curves of bench/bench_neural.py."""
     layout = pose_layout(motion)
     scale, offset = _normalisation(layout)
     z = (layout.targets - offset) / scale
     frames = motion.frame_count
     for freqs, p in algorithm1(z, frames, mode, k_max, iterations, restart, np.random.default_rng(seed)):
-        yield NeuralModel(frames, motion.skeleton.node_count, freqs, layout, scale, offset, quantize(p, 16))
+        yield NeuralModel(frames, motion.skeleton.node_count, layout, scale, offset,
+                          [WindowNetwork(0, frames, freqs, quantize(p, 16))])
