@@ -85,7 +85,7 @@ def network_curve(motion: Motion, mode: str, k_max: int, iterations: int) -> lis
     return out
 
 
-def codec_set(motions: list[Motion], codec: str, tol: float, tmp: Path, speed: Path | None,
+def codec_set(motions: list[Motion], codec: str, tol: float, keep: Path, speed: Path | None,
               options: dict) -> dict:
     """Every clip of ``motions`` in one asset (rma is a library codec: its figures are per set),
     per-clip payload bytes and errors through the runtime, C speed on the asset."""
@@ -108,9 +108,10 @@ def codec_set(motions: list[Motion], codec: str, tol: float, tmp: Path, speed: P
            "max_error_cm": max(c.error.max_cm for c in r.clips),
            "mean_error_cm": float(np.average([c.error.mean_cm for c in r.clips], weights=[m.frame_count for m in motions])),
            "seconds": time.perf_counter() - t0, "clips": clips}
+    path = keep.with_name(f"{keep.name}_{codec}_{tol:g}cm.mcd")
+    path.write_bytes(r.asset)  # kept (git-ignored) so the speed can be re-measured on an idle machine
+    row["asset"] = str(path)
     if speed is not None:
-        path = tmp / f"{codec}_{tol}.mcd"
-        path.write_bytes(r.asset)
         out = subprocess.run([str(speed), str(path), "7"], capture_output=True, text=True, check=True)
         row["speed"] = json.loads(out.stdout)
     return row
@@ -128,6 +129,8 @@ def main() -> None:
     ap.add_argument("--dev", nargs="*", default=[], help="clips (file stems) of ../shared/data/cmu for the codec comparison")
     ap.add_argument("--all-dev", action="store_true", help="every clip of ../shared/data/cmu for the codec comparison")
     ap.add_argument("--figure3", nargs="*", default=[], help="clips (file stems) for Figure 3 (whole clip, one network)")
+    ap.add_argument("--keep-frame0", action="store_true",
+                    help="Figure 3 on the whole file; by default frame 0 (CMU's T-pose) is left out")
     ap.add_argument("--kmax", type=int, default=12)
     ap.add_argument("--iterations", type=int, default=500)
     ap.add_argument("--tolerances", type=float, nargs="*", default=[1.0, 3.0])
@@ -145,6 +148,8 @@ def main() -> None:
     for stem in args.figure3:
         m = read_bvh(dev / f"{stem}.bvh")
         print(f"figure 3: {m.name}: {m.frame_count} frames", flush=True)
+        if args.keep_frame0 is False and m.frame_count > 2:
+            m = m.slice(1, m.frame_count)  # CMU's frame 0 is the converter's T-pose, not motion
         results["figure3"][m.name] = {
             "frames": m.frame_count, "svd": svd_curve(m, [1, 2, 3, 4, 6, 8, 12, 16, 24, 32]),
             "naive": network_curve(m, "naive", args.kmax, args.iterations),
@@ -154,10 +159,12 @@ def main() -> None:
     compare = [c for c in args.codecs if c in codecs.available()]
     if motions:
         with tempfile.TemporaryDirectory() as td:
-            tmp, speed = Path(td), build_speed(Path(td))
+            speed = build_speed(Path(td))
+            keep = args.out / args.name
+            args.out.mkdir(parents=True, exist_ok=True)
             for tol in args.tolerances:
                 for c in compare:
-                    results["sets"].append(codec_set(motions, c, tol, tmp, speed, options if c == "neural" else {}))
+                    results["sets"].append(codec_set(motions, c, tol, keep, speed, options if c == "neural" else {}))
                     _write(args, results)
     print(report(results))
 

@@ -64,9 +64,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
                     help="tighter bound for hands, feet, head and end sites (as `mocodec encode`); "
                          "the results are then written as <codec>_effector<CM>.json / .md")
+    ap.add_argument("--pca-variances", type=float, nargs="+", default=None, metavar="F",
+                    help="sweep seed 003's variance setting instead of tolerances (codec rma-pca, "
+                         "no error promise: the rows report the error reached)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     args = ap.parse_args(argv)
+    if args.pca_variances:
+        args.codec = "rma-pca"
     stem = args.codec if args.effector_tolerance is None else f"{args.codec}_effector{args.effector_tolerance:g}"
+    if args.pca_variances and options_label(args.option):
+        stem += "_" + options_label(args.option)
 
     args.out.mkdir(parents=True, exist_ok=True)
     paths = sorted(args.data.glob("*.bvh"))
@@ -84,17 +91,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(motions)} clips, {frames} frames from {args.data}; codec {args.codec}", file=sys.stderr)
 
     rows = []
-    for tol in args.tolerances:
+    sweep = [(None, v) for v in args.pca_variances] if args.pca_variances else [(t, None) for t in args.tolerances]
+    for tol, variance in sweep:
         started = time.perf_counter()
-        result = encode_motions(motions, units, args.codec, Tolerance(tol, args.effector_tolerance), options,
-                                progress=lambda n: print(f"  {tol} cm: {n}", file=sys.stderr))
+        opts = options if variance is None else {**options, "variance": variance}
+        label = f"{tol} cm" if variance is None else f"variance {variance}"
+        result = encode_motions(motions, units, args.codec, Tolerance(tol or 1.0, args.effector_tolerance), opts,
+                                progress=lambda n: print(f"  {label}: {n}", file=sys.stderr))
         seconds = time.perf_counter() - started
-        asset_path = args.out / f"{stem}_{tol:g}cm.mcd"
+        asset_path = args.out / (f"{stem}_{tol:g}cm.mcd" if variance is None else f"{stem}_v{variance:g}.mcd")
         asset_path.write_bytes(result.asset)
         err = combine([c.error for c in result.clips])
         sp = speed(exe, asset_path, args.runs)
         row = {
-            "tolerance_cm": tol, "asset_bytes": len(result.asset),
+            "tolerance_cm": tol, **({"pca_variance": variance, **result.settings} if variance else {}),
+            "asset_bytes": len(result.asset),
             **{k: result.size.as_dict()[k] for k in ("ratio_bvh", "ratio_acl", "bytes_per_second",
                                                       "raw_bvh_bytes", "raw_acl_bytes", "seconds")},
             **err, **effector_split(motions, result.clips), "encode_seconds": seconds, **{k: v for k, v in sp.items() if k.startswith("us_")},
@@ -123,6 +134,11 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def options_label(options: list[str]) -> str:
+    """``-O`` settings as a file-name part: groups=1 -> groups1."""
+    return "_".join(o.replace("=", "") for o in options)
+
+
 def effector_split(motions: list, clips: list) -> dict:
     """Mean and max error of the end effectors (hands, feet, head, end sites) and of every other
     node, over every frame of every clip: the fidelity goal is effectors at half the inner error."""
@@ -143,7 +159,8 @@ def effector_split(motions: list, clips: list) -> dict:
 
 def markdown(report: dict) -> str:
     acl = report["acl_reference"] is not None
-    head = ["tolerance cm", "bytes", "B/s", "ratio BVH f32", "ratio ACL 40B", "max cm", "p99 cm",
+    pca = any(r.get("pca_variance") for r in report["rows"])
+    head = ["PCA variance (components per group)" if pca else "tolerance cm", "bytes", "B/s", "ratio BVH f32", "ratio ACL 40B", "max cm", "p99 cm",
             "mean cm", "effector / inner mean cm", "encode s", "µs/pose seq", "µs/pose random",
             "µs world seq", "resident B"]
     if acl:
@@ -153,7 +170,9 @@ def markdown(report: dict) -> str:
              f"`{report['data']}`, options {json.dumps(report['options'])}", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in report["rows"]:
-        cells = [f"{r['tolerance_cm']:g}", f"{r['asset_bytes']:,}", f"{r['bytes_per_second']:,.0f}",
+        first = (f"{r['pca_variance']:g} ({' '.join(map(str, r['components']))})" if pca
+                 else f"{r['tolerance_cm']:g}")
+        cells = [first, f"{r['asset_bytes']:,}", f"{r['bytes_per_second']:,.0f}",
                  f"{r['ratio_bvh']:.1f}", f"{r['ratio_acl']:.1f}", f"{r['max_cm']:.4f}",
                  f"{r['p99_cm']:.4f}", f"{r['mean_cm']:.4f}",
                  f"{r['effector_mean_cm']:.3f} / {r['inner_mean_cm']:.3f}" if "effector_mean_cm" in r else "—",

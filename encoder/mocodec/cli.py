@@ -121,7 +121,24 @@ def _parse_option(text: str) -> tuple[str, Any]:
 
 
 def _codec_options(args: argparse.Namespace) -> dict[str, Any]:
-    return dict(_parse_option(o) for o in (args.option or []))
+    options = dict(_parse_option(o) for o in (args.option or []))
+    if getattr(args, "pca_variance", None) is not None:
+        options["variance"] = args.pca_variance
+    return options
+
+
+def _codec_choice(args: argparse.Namespace) -> str:
+    """``--pca-variance`` asks for seed 003's subspace representation: codec rma-pca."""
+    variance = getattr(args, "pca_variance", None)
+    if variance is None:
+        return args.codec
+    if args.codec not in ("rma", "rma-pca"):
+        raise CliError(f"--pca-variance is a setting of codec rma (seed 003's PCA), not of {args.codec!r}")
+    if not 0.0 < variance <= 1.0:
+        raise CliError(f"--pca-variance must be in (0, 1], got {variance}")
+    if getattr(args, "contacts", False):
+        raise CliError("--contacts needs a tolerance promise; --pca-variance makes none")
+    return "rma-pca"
 
 
 def _encode(args: argparse.Namespace):
@@ -132,12 +149,14 @@ def _encode(args: argparse.Namespace):
     paths = _expand_inputs(args.inputs)
     motions, units = _load(paths, args, quiet or getattr(args, "json", False))
     tolerance = Tolerance(args.tolerance, args.effector_tolerance)
+    codec = _codec_choice(args)
     if not quiet and not getattr(args, "json", False):
         eff = f", end effectors {args.effector_tolerance} cm" if args.effector_tolerance else ""
-        print(f"encoding {len(motions)} clip(s) with codec {args.codec!r}, tolerance "
-              f"{args.tolerance} cm{eff}", file=sys.stderr)
+        promise = (f"PCA keeping {args.pca_variance:g} of the variance (no error bound: the error "
+                   "reached is reported)") if codec == "rma-pca" else f"tolerance {args.tolerance} cm{eff}"
+        print(f"encoding {len(motions)} clip(s) with codec {codec!r}, {promise}", file=sys.stderr)
     progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
-    result = encode_motions(motions, units, args.codec, tolerance, _codec_options(args), progress,
+    result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
                             contacts=bool(getattr(args, "contacts", False)))
     return motions, result
 
@@ -154,7 +173,8 @@ def _summary_lines(result) -> list[str]:
     frames = sum(c.frames for c in result.clips)
     return [
         f"clips: {len(result.clips)} ({_fmt_int(frames)} frames, {size.seconds:.1f} s)   "
-        f"codec: {result.codec}   tolerance: {result.tolerance.tolerance_cm} cm",
+        f"codec: {result.codec}   " + (f"tolerance: {result.tolerance.tolerance_cm} cm" if result.promise else
+                                       f"PCA variance {result.settings.get('pca_variance')} (no tolerance)"),
         f"size: {_fmt_int(size.asset_bytes)} bytes ({_fmt_int(size.bytes_per_second)} B/s of animation)",
         f"ratio: {size.ratio_bvh:.1f}:1 vs BVH float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
         f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
@@ -191,8 +211,9 @@ def _result_json(result) -> dict[str, Any]:
 
     return {
         "codec": result.codec,
-        "tolerance_cm": result.tolerance.tolerance_cm,
-        "effector_tolerance_cm": result.tolerance.effector_tolerance_cm,
+        "tolerance_cm": result.tolerance.tolerance_cm if result.promise else None,
+        "effector_tolerance_cm": result.tolerance.effector_tolerance_cm if result.promise else None,
+        **({} if result.promise else {"pca_variance": result.settings.get("pca_variance")}),
         "size": result.size.as_dict(),
         "error": combine([c.error for c in result.clips]),
         "encode_seconds": result.encode_seconds,
@@ -358,6 +379,11 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
                         "in cm (default: %(default)s)")
     p.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
                    help="a tighter bound for hands, feet, head and end sites, in cm")
+    p.add_argument("--pca-variance", type=float, default=None, metavar="F",
+                   help="seed 003's own setting instead of a tolerance: codec rma coded as PCA "
+                        "of virtual markers per behaviour group keeping this fraction of the "
+                        "variance (the paper: 0.95, 0.98); makes no error promise and reports "
+                        "the error reached (codec rma-pca)")
     units = p.add_mutually_exclusive_group()
     units.add_argument("--units", choices=["cm", "m", "mm", "in", "cmu"],
                        help="the BVH files' length unit (cmu: CMU mocap, 5.6444 cm); "

@@ -21,9 +21,9 @@ FORMAT_MAJOR = 1
 FORMAT_MINOR = 0
 HEADER_SIZE = 32
 
-CODEC_IDS = {"spline": 1, "rma": 2, "ik-predict": 3, "fk-wavelet": 4, "neural": 5}
+CODEC_IDS = {"spline": 1, "rma": 2, "ik-predict": 3, "fk-wavelet": 4, "neural": 5, "rma-pca": 6}
 CODEC_NAMES = {v: k for k, v in CODEC_IDS.items()}
-CODEC_SECTION_KINDS = {"spline": b"SPLN", "rma": b"RMAL", "ik-predict": b"IKPR",
+CODEC_SECTION_KINDS = {"spline": b"SPLN", "rma": b"RMAL", "rma-pca": b"RMAP", "ik-predict": b"IKPR",
                        "fk-wavelet": b"FKWV", "neural": b"NEUR"}
 # Section layout versions other than 1 (docs/FORMAT.md): NEUR 2 holds windowed networks.
 CODEC_SECTION_VERSIONS = {"neural": 2}

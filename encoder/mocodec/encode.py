@@ -45,6 +45,10 @@ class EncodeResult:
     clips: list[ClipReport]
     size: SizeReport
     encode_seconds: float
+    # False when the codec's setting bounds no error (rma-pca's variance fraction): the
+    # errors are what it reached, and the tolerance was not applied.
+    promise: bool = True
+    settings: dict[str, Any] = field(default_factory=dict)
 
     @property
     def max_error_cm(self) -> float:
@@ -137,7 +141,7 @@ def encode_motions(
     tol_nodes = [tolerance.per_node_cm(m.skeleton) for m in motions]
     for m, r, t in zip(motions, reports, tol_nodes):
         over = r.errors_cm > t[None, :] + 1e-9
-        if over.any():
+        if over.any() and out.promise:
             raise EncodeError(
                 f"clip {m.name!r}: error {r.max_cm:.4f} cm exceeds the tolerance on "
                 f"{int(over.sum())} samples (this is a bug in codec {codec!r})"
@@ -147,7 +151,8 @@ def encode_motions(
         "codec": codec,
         "settings": {"tolerance_cm": tolerance.tolerance_cm,
                      "effector_tolerance_cm": tolerance.effector_tolerance_cm,
-                     "contacts": contacts},
+                     "contacts": contacts, **out.settings}
+        if out.promise else {"tolerance_cm": None, "contacts": contacts, **out.settings},
         "clips": {
             m.name: {
                 "max_error_cm": round(r.max_cm, 6),
@@ -168,7 +173,8 @@ def encode_motions(
         s.update(cs)
     clips = [ClipReport(m.name, m.frame_count, r, u, s)
              for m, r, u, s in zip(motions, reports, units, stats)]
-    return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed)
+    return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed,
+                        out.promise, dict(out.settings))
 
 
 def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], units: "list[UnitsChoice]",

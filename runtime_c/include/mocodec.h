@@ -83,7 +83,8 @@ typedef enum mcd_codec {
     MCD_CODEC_RMA = 2,
     MCD_CODEC_IK_PREDICT = 3,
     MCD_CODEC_FK_WAVELET = 4,
-    MCD_CODEC_NEURAL = 5
+    MCD_CODEC_NEURAL = 5,
+    MCD_CODEC_RMA_PCA = 6
 } mcd_codec;
 
 /* BVH channel codes (skeleton channel layout). */

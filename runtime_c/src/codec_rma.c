@@ -393,12 +393,14 @@ static void prepare(const layout* L, const mcd_clip_view* v, const rma_views* s)
         d += desc_size(ts->kind);
     }
     for (i = 0; i < L->nodes; ++i) {
-        const uint8_t* rec = v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
         node_plan* np = &s->plans[i];
         uint32_t rm = L->modes[i] & 3u, tm = (L->modes[i] >> 2) & 3u;
         np->base.rotation[0] = np->base.rotation[1] = np->base.rotation[2] = 0.0f;
         np->base.rotation[3] = 1.0f;
-        for (k = 0; k < 3; ++k) np->base.translation[k] = mcd_rd_f32(rec + 8 + 4 * k);
+        /* Rest offsets; none for curve sets of codec rma-pca, which have no skeleton. */
+        for (k = 0; k < 3; ++k)
+            np->base.translation[k] =
+                v->skeleton ? mcd_rd_f32(v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE + 8 + 4 * k) : 0.0f;
         np->rot_track = -1;
         np->trans_track = -1;
         if (rm == 1u) {

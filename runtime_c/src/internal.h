@@ -176,6 +176,7 @@ extern const mcd_codec_ops mcd_codec_neural_ops;
 extern const mcd_codec_ops mcd_codec_rma_ops;
 extern const mcd_codec_ops mcd_codec_fkwavelet_ops;
 extern const mcd_codec_ops mcd_codec_ikpredict_ops;
+extern const mcd_codec_ops mcd_codec_rmapca_ops;
 
 /* ---------------------------------------------------------------- container access */
 /* Resolve clip `clip` of an opened (validated) asset. */

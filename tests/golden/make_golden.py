@@ -22,6 +22,7 @@ sys.path.insert(0, str(REPO / "encoder"))
 
 from mocodec.encode import encode_motions  # noqa: E402
 from mocodec.io import read_bvh  # noqa: E402
+from mocodec.motion import Motion  # noqa: E402
 from mocodec.runtime import Asset  # noqa: E402
 from mocodec.tolerance import Tolerance  # noqa: E402
 from mocodec.units import resolve_units  # noqa: E402
@@ -55,12 +56,20 @@ def main(version: str) -> None:
         "spline_library": ([walk, walk2], 0.5, "spline"),  # two clips, two skeletons (subjects 07, 02)
         "rma_library": ([walk, run], 1.0, "rma"),  # two clips, two skeletons (subjects 07, 09)
     }
+    # rma-pca: a clip PPCA cuts into pieces of two groups (a walk, a run, the walk again on one
+    # skeleton), so the golden poses cover the cross-fade between pieces.
+    full = read_bvh(SAMPLES / "02_01.bvh")
+    mixed = Motion(full.skeleton, np.concatenate([full.rotations[1:], run.rotations[1:], full.rotations[1:]]),
+                   np.concatenate([full.translations[1:], run.translations[1:], full.translations[1:]]),
+                   full.frame_time, "mixed")
+    options = {"rma_pca_library": {"groups": 2, "variance": 0.98}}
+    cases["rma_pca_library"] = ([walk, mixed], 1.0, "rma-pca")
     for name, (motions, tol, codec) in cases.items():
         if (out / f"{name}.mcd").exists():
             print(f"{name}: kept (golden files are never rewritten)")
             continue
         units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
-        result = encode_motions(motions, units, codec, Tolerance(tol))
+        result = encode_motions(motions, units, codec, Tolerance(tol), options.get(name))
         (out / f"{name}.mcd").write_bytes(result.asset)
         write_poses(result.asset, out / f"{name}.poses.txt")
         print(f"{name}: {len(result.asset)} bytes, max error {result.max_error_cm:.4f} cm")

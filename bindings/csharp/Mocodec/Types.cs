@@ -55,7 +55,8 @@ namespace Mocodec
         Rma = 2,
         IkPredict = 3,
         FkWavelet = 4,
-        Neural = 5
+        Neural = 5,
+        RmaPca = 6
     }
 
     /// <summary>BVH channel codes (<c>mcd_channel</c>).</summary>

@@ -27,6 +27,10 @@ class CodecOutput:
     payloads: list[bytes]
     section_prefix: bytes = b""
     stats: list[dict[str, Any]] = field(default_factory=list)
+    # False when the codec is driven by a setting that bounds no error (rma-pca's variance):
+    # the error reached is reported, not checked against the tolerance.
+    promise: bool = True
+    settings: dict[str, Any] = field(default_factory=dict)  # recorded in the asset's META
 
 
 def available() -> list[str]:
@@ -81,6 +85,7 @@ _REGISTRY: dict[str, Callable[..., CodecOutput]] = {
         "keys": r.keys, "tracks": r.tracks, "repairs": r.repairs, "budget_scale": r.scale,
         "encode_seconds": r.seconds}),
     "rma": _library("rma"),
+    "rma-pca": _library("rma_pca"),
     "neural": _per_clip("neural", "NeuralSettings", lambda r: {
         "windows": [[w["start"], w["frames"], w["K"], w["bits"]] for w in r.windows],
         "frequencies": r.frequency_counts, "parameters": r.parameters, "splits": r.splits,

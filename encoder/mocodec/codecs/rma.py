@@ -9,10 +9,11 @@ budgets, repair through the C runtime) and differs in storage: no block grid for
 of lattice integers, and the per-clip tables are compact. The runtime decodes the section once
 at ``mcd_open`` into resident memory (dequantized keys and a seek table) and samples floats.
 
-What this codec does not do (yet) of seed 003: the PCA of virtual markers and the
-repeated-motion references. ``docs/RMA_STUDY.md`` measured why: on the CMU dev clips a
-max-1 cm promise needs 43-140 principal components per behaviour group and the
-PCA-coefficient streams come out about 4x larger than per-joint splines.
+The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
+is codec ``rma-pca`` (``--pca-variance``, :mod:`.rma_pca`); this one does not use it because
+``docs/RMA_STUDY.md`` measured that a max-1 cm promise needs 43-140 principal components per
+behaviour group and the PCA-coefficient streams come out about 4x larger than per-joint
+splines. Repeated-motion references are not coded (measured not to pay, docs/CODECS.md).
 """
 from __future__ import annotations
 

@@ -1,0 +1,376 @@
+"""Codec ``rma-pca``: seed 003's subspace representation, chosen by a PCA variance fraction
+(``mocodec encode --codec rma --pca-variance 0.95``), in one ``RMAP`` section (docs/FORMAT.md).
+
+The pipeline is the seed's: root alignment (§3: heading and root translation out, all six root
+DOFs for large tilts), compact virtual markers (Fig. 2b), PPCA behaviour segments and
+normalized-cut groups (§4.1), one PCA per group keeping the requested fraction of the variance
+(16-bit mean, 12-bit axes, §5.4), and per piece of a clip (a run of frames in one group) the
+coefficient trajectories as Catmull-Rom keys with adaptive control points on a quantization
+lattice (§5.1-5.2), entropy coded as in ``rma``. The root curves are coded the same way. The
+runtime rebuilds markers (mean + axes x coefficients), joint rotations from the markers by
+Gram-Schmidt, and re-applies the root.
+
+A variance fraction is not an error bound: this codec makes **no tolerance promise**. It
+reports the error it reaches (measured through the C runtime like every codec).
+``docs/RMA_STUDY.md`` measured why the default ``rma`` does not use a subspace: a max-error
+promise needs 43-140 of 204 components per group.
+
+Not coded: repeated clips (eq. 6). Measured in the PCA representation on the 10-clip subset
+(docs/RMA_STUDY.md), coefficient differences against the reconstructed primary made the asset
+8-12 % larger at the paper's 95 % and at max 6 cm, and 6 % smaller only at max 1 cm with one
+group.
+"""
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ..curves import fit_keys
+from ..motion import Motion, Skeleton
+from ..quantize import Quantizer, StepQuantizer
+from ..rma import pca as P
+from ..rma import preprocess as PP
+from ..rma import segment as S
+from ..tolerance import Tolerance
+from . import CodecOutput, ProgressFn
+from . import rma
+from .spline import KIND_TRANSLATION, _Track
+
+SECTION_HEADER = 32
+JOINT_RECORD = 24
+GROUP_HEADER = 16
+NO_INDEX = 0xFFFF
+MEAN_BITS, AXIS_BITS = 16, 12
+MAX_BLEND = 64
+
+
+@dataclass
+class RmaPcaSettings:
+    """Settings of ``rma-pca`` (lengths in cm).
+
+    Parameters
+    ----------
+    variance : float, default 0.95
+        Fraction of each group's marker variance its PCA keeps (the seed: 0.95 and 0.98).
+    groups : int or None, default None
+        None: the seed's §4.1, PPCA segments grouped by normalized cut, the group count chosen
+        by the PCA bit-cost model (1 ... 12). 1: one PCA for the whole library, no
+        segmentation. n > 1: n groups by normalized cut.
+    coef_cm : float, default 1.0
+        Max deviation of each coefficient curve (keys and quantization) from the projected
+        coefficients; a coefficient moves the markers by this much at most.
+    root_cm : float, default 0.1
+        Max error of the root translation curve, and of the heading curve at 1 m from the root.
+    quant_fraction : float, default 0.6
+        Share of a curve's budget given to quantization.
+    key_grid : int, default 4
+        New keys prefer multiples of this many frames (as in ``rma``).
+    blend_seconds : float, default 0.06
+        Width of the cross-fade between two pieces of a clip (the seed's clip-boundary
+        smoothing, ~60 ms): each piece's curves reach half of it into the neighbour and the
+        runtime blends the two reconstructions there. 0: no blending (a pose may jump at a
+        border by the two pieces' reconstruction errors).
+    """
+
+    tolerance: Tolerance | None = None  # unused: this codec makes no promise
+    variance: float = 0.95
+    groups: int | None = None
+    coef_cm: float = 1.0
+    root_cm: float = 0.1
+    quant_fraction: float = 0.6
+    key_grid: int = 4
+    blend_seconds: float = 0.06
+
+    def __post_init__(self) -> None:
+        self.variance = float(self.variance)
+        if not 0.0 < self.variance <= 1.0:
+            raise ValueError(f"variance must be in (0, 1], got {self.variance}")
+        if self.groups is not None:
+            self.groups = int(self.groups)
+            if not 1 <= self.groups <= 64:
+                raise ValueError(f"groups must be 1 ... 64, got {self.groups}")
+        for name in ("coef_cm", "root_cm"):
+            v = float(getattr(self, name))
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number of cm, got {v}")
+            setattr(self, name, v)
+        if not 0.0 < float(self.quant_fraction) < 1.0:
+            raise ValueError(f"quant_fraction must be in (0, 1), got {self.quant_fraction}")
+        self.key_grid = int(self.key_grid)
+        if not 1 <= self.key_grid <= 8:
+            raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
+        self.blend_seconds = float(self.blend_seconds)
+        if not 0.0 <= self.blend_seconds <= 0.5:
+            raise ValueError(f"blend_seconds must be 0 ... 0.5, got {self.blend_seconds}")
+
+    def blend_frames(self, frame_time: float) -> int:
+        """Half-width of the cross-fade in frames (the format's ``blend``, at most 64)."""
+        return min(int(round(0.5 * self.blend_seconds / frame_time)), MAX_BLEND)
+
+
+@dataclass
+class Piece:
+    """Frames ``[start, stop]`` of clip ``clip`` (inclusive: a piece shares its last frame with
+    the next piece's first, so the curve spans the step between them) coded in ``group``."""
+
+    clip: int
+    start: int
+    stop: int
+    group: int
+
+
+# ------------------------------------------------------------------------ analysis (§3, §4.1)
+def _long_enough(pieces: list[Piece], span: int) -> list[Piece]:
+    """Merge pieces shorter than ``span`` frames into their predecessor in the clip (or, for a
+    clip's first piece, its successor), so cross-fades neither overlap nor leave the clip."""
+    out: list[Piece] = []
+    for p in pieces:
+        q = out[-1] if out else None
+        if q is not None and q.clip == p.clip and (q.group == p.group or min(q.stop - q.start, p.stop - p.start) < span):
+            # The merged piece keeps the group of the longer part.
+            group = q.group if q.stop - q.start >= p.stop - p.start else p.group
+            out[-1] = Piece(p.clip, q.start, p.stop, group)
+        else:
+            out.append(Piece(p.clip, p.start, p.stop, p.group))
+    return out
+
+
+def pieces_and_groups(flats: list[np.ndarray], groups: int | None, blend: int = 0) -> list[Piece]:
+    """Cut every clip into behaviour segments and group them (seed 003 §4.1); consecutive
+    segments of one clip in the same group become one piece, and pieces are at least
+    ``2 blend + 1`` frames long."""
+    if groups == 1:
+        labels = np.zeros(len(flats), dtype=np.int64)
+        segs = [S.Segment(i, 0, len(x)) for i, x in enumerate(flats)]
+    else:
+        segs = S.segment_library(flats)
+        blocks = [flats[s.clip][s.start:s.stop] for s in segs]
+        feats = [S.segment_feature(b) for b in blocks]
+        labels = S.group_segments(feats, n_groups=groups, cost=S.pca_group_cost(blocks))
+    pieces: list[Piece] = []
+    for s, g in zip(segs, labels):
+        if pieces and pieces[-1].clip == s.clip and pieces[-1].group == g:
+            pieces[-1].stop = s.stop
+        else:
+            pieces.append(Piece(s.clip, s.start, s.stop, int(g)))
+    # Inclusive stops: each piece reaches the next one's first frame (or the clip's last).
+    for p in pieces:
+        p.stop = min(p.stop, len(flats[p.clip]) - 1)
+    pieces = _long_enough(pieces, 2 * blend + 1)
+    # Group numbers dense from 0 in order of first use.
+    order = {g: i for i, g in enumerate(dict.fromkeys(p.group for p in pieces))}
+    for p in pieces:
+        p.group = order[p.group]
+    return pieces
+
+
+@dataclass
+class GroupBasis:
+    k: int
+    mean_q: Quantizer
+    mean_codes: np.ndarray   # (D,)
+    axis_q: list[Quantizer]
+    axis_codes: np.ndarray   # (k, D)
+    mean: np.ndarray         # (D,) as the runtime decodes it
+    axes: np.ndarray         # (D, k) as the runtime decodes them
+
+
+def _fixed(values: np.ndarray, bits: int) -> tuple[Quantizer, np.ndarray, np.ndarray]:
+    lo, hi = float(values.min()), float(values.max())
+    step = max(hi - lo, 1e-30) / ((1 << bits) - 1) * (1.0 + 1e-6)
+    q = Quantizer.for_range(np.array([lo]), np.array([hi]), np.array([step]))
+    codes = q.encode(values[:, None])[:, 0]
+    return q, codes, q.decode(codes[:, None])[:, 0]
+
+
+def group_basis(rows: np.ndarray, variance: float) -> GroupBasis:
+    """PCA of a group's marker rows keeping ``variance``: 16-bit mean, 12-bit axes (§5.4)."""
+    dec = P.decompose(rows)
+    k = dec.components_for_variance(variance)
+    mq, mc, mean = _fixed(dec.mean, MEAN_BITS)
+    qs, codes, cols = [], [], []
+    for i in range(k):
+        q, c, v = _fixed(dec.vectors[:, i], AXIS_BITS)
+        qs.append(q)
+        codes.append(c)
+        cols.append(v)
+    axes = np.stack(cols, axis=1) if k else np.zeros((len(mean), 0))
+    return GroupBasis(k, mq, mc, qs, np.asarray(codes, dtype=np.int64).reshape(k, -1), mean, axes)
+
+
+def project(basis: GroupBasis, rows: np.ndarray) -> np.ndarray:
+    """Coefficients (F, k): least squares on the decoded (quantized) axes."""
+    if basis.k == 0:
+        return np.zeros((len(rows), 0))
+    a = basis.axes
+    return np.linalg.solve(a.T @ a, a.T @ (rows - basis.mean).T).T
+
+
+# ------------------------------------------------------------------------ curves
+def _pseudo_motion(nodes: int, frames: int, frame_time: float) -> Motion:
+    """A carrier for curve sets: ``nodes`` nodes whose translations are the curves."""
+    sk = Skeleton([f"c{i}" for i in range(nodes)], np.full(nodes, -1), np.zeros((nodes, 3)),
+                  [() for _ in range(nodes)], np.zeros(nodes, dtype=bool))
+    rot = np.zeros((frames, nodes, 4))
+    rot[..., 3] = 1.0
+    return Motion(sk, rot, np.zeros((frames, nodes, 3)), frame_time, "curves")
+
+
+def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> _Track:
+    """One scalar (or 3-vector) curve as an ``rma`` translation track within ``budget`` on
+    every frame (max abs deviation per component)."""
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        values = np.stack((values, np.zeros_like(values), np.zeros_like(values)), axis=1)
+    frames = len(values)
+    step = np.full(3, 2.0 * quant_fraction * budget)
+    reach = np.abs(values).max(axis=0)
+    # Keep |q| well inside the lattice: a very small budget on a long root path is legal input.
+    step = np.maximum(step, reach / (StepQuantizer.MAX_Q / 4))
+    q = StepQuantizer.for_range(-reach, reach, step.max() * np.ones(3))
+    mandatory = np.unique([0, frames - 1])
+    keys, kv, _ = fit_keys(values, np.full(frames, budget * 1.0000001),
+                           lambda r: np.max(np.abs(r - values), axis=1), mandatory, q.roundtrip,
+                           grid=grid if frames > 4 * grid else 1)
+    t = _Track(node=node, kind=KIND_TRANSLATION, values=values, target=values,
+               ref=np.zeros(4), axis=np.zeros(3))
+    t.keys, t.key_values, t.quantizer = keys, kv, q
+    return t
+
+
+def curve_set(curves: list[np.ndarray], budgets: list[float], frame_time: float,
+              s: RmaPcaSettings) -> bytes:
+    """An ``RMAL`` payload whose node ``i`` translation carries ``curves[i]``."""
+    frames = len(curves[0])
+    tracks = [_curve_track(i, c, b, s.quant_fraction, s.key_grid) for i, (c, b) in enumerate(zip(curves, budgets))]
+    return rma.serialize(_pseudo_motion(len(curves), frames, frame_time), tracks, s.key_grid)
+
+
+def root_curves(root: PP.RootTrack, cm_per_unit: float, s: RmaPcaSettings) -> tuple[list[np.ndarray], list[float]]:
+    """The root's curves: translation and heading, or translation and the whole rotation
+    (quaternion x y z, then w) for a six-DOF clip."""
+    trans_budget = s.root_cm / cm_per_unit
+    angle_budget = s.root_cm / 100.0  # radians: root_cm at 1 m
+    if not root.full:
+        return [root.translation, root.yaw], [trans_budget, angle_budget]
+    q = root.rotation
+    return [root.translation, q[:, :3], q[:, 3]], [trans_budget, 0.5 * angle_budget, 0.5 * angle_budget]
+
+
+# ------------------------------------------------------------------------ section layout
+def _pack12(codes: np.ndarray) -> bytes:
+    """12-bit codes, two per three bytes, low code first (docs/FORMAT.md)."""
+    c = np.asarray(codes, dtype=np.uint32).ravel()
+    if len(c) % 2:
+        c = np.append(c, 0)
+    a, b = c[0::2], c[1::2]
+    out = np.stack((a & 0xFF, (a >> 8) | ((b & 0xF) << 4), b >> 4), axis=1).astype(np.uint8)
+    return out.tobytes()
+
+
+def group_record(b: GroupBasis) -> bytes:
+    d = len(b.mean)
+    head = struct.pack("<IIff", b.k, 0, float(b.mean_q.minimum[0]), float(b.mean_q.step[0]))
+    steps = b"".join(struct.pack("<ff", float(q.minimum[0]), float(q.step[0])) for q in b.axis_q)
+    body = head + steps + np.asarray(b.mean_codes, dtype="<u2").tobytes() + _pack12(b.axis_codes)
+    assert len(b.mean_codes) == d
+    return body.ljust(rma._align(len(body), 4), b"\0")
+
+
+def joint_table(layout: PP.MarkerLayout) -> bytes:
+    out = []
+    for j, node in enumerate(layout.joints):
+        uses_b = layout.b_length[j] > 0
+        child = NO_INDEX if uses_b else int(layout.position_nodes[layout.axis_marker[j]])
+        origin = int(layout.position_source[node])
+        bdir = layout.rest_axis[j] if uses_b else np.zeros(3)
+        out.append(struct.pack("<6H3f", int(node), child, int(layout.axis_marker[j]), int(layout.side_marker[j]),
+                               NO_INDEX if origin < 0 else origin, 0, *np.asarray(bdir, dtype=np.float32).tolist()))
+    return b"".join(out)
+
+
+CLIP_HEADER, PIECE_RECORD = 24, 8
+
+
+def clip_payload(frames: int, curves_offset: int, full: bool, pieces: list[tuple[int, int]]) -> bytes:
+    """A clip's record: its frames, root mode, where its curve sets start in the embedded
+    ``RMAL`` section (the root's, then one per piece, back to back) and its pieces (first
+    frame, group)."""
+    head = struct.pack("<6I", CLIP_HEADER + PIECE_RECORD * len(pieces), frames, len(pieces), int(full),
+                       curves_offset, 0)
+    return head + b"".join(struct.pack("<II", *p) for p in pieces)
+
+
+# ------------------------------------------------------------------------ entry point
+def encode(
+    motions: list[Motion],
+    cm_per_unit: list[float],
+    tolerance: Tolerance,
+    check: Callable[..., np.ndarray],
+    options: dict[str, Any],
+    progress: ProgressFn | None = None,
+) -> CodecOutput:
+    """Encode a library into one ``RMAP`` section (no tolerance promise: see the module)."""
+    s = RmaPcaSettings(tolerance=tolerance, **options)
+    started = time.perf_counter()
+    if len(set(cm_per_unit)) != 1:
+        raise ValueError("rma-pca codes one library in one unit: the clips' units differ")
+    cm = cm_per_unit[0]
+    try:
+        shared = PP.library_layout([m.skeleton for m in motions], cm)
+    except ValueError as exc:
+        raise ValueError(f"rma-pca needs clips of one skeleton layout ({exc}); encode each skeleton separately") from None
+    prepared = [PP.to_markers(m, cm, layout=PP.layout_for(m.skeleton, shared)) for m in motions]
+    flats = [p.flat for p in prepared]
+    frame_times = {m.frame_time for m in motions}
+    blend = s.blend_frames(min(frame_times))
+    pieces = pieces_and_groups(flats, s.groups, blend)
+    n_groups = max(p.group for p in pieces) + 1
+    bases = []
+    for g in range(n_groups):
+        rows = np.concatenate([flats[p.clip][p.start:p.stop + (p.stop == len(flats[p.clip]) - 1)]
+                               for p in pieces if p.group == g])
+        bases.append(group_basis(rows, s.variance))
+    curve_payloads: list[bytes] = []
+    clip_payloads, stats = [], []
+    for ci, (m, pr) in enumerate(zip(motions, prepared)):
+        t0 = time.perf_counter()
+        rc, rb = root_curves(pr.root, cm, s)
+        curves_offset = 16 + sum(len(c) for c in curve_payloads)
+        curve_payloads.append(curve_set(rc, rb, m.frame_time, s))
+        rows = []
+        mine = [p for p in pieces if p.clip == ci]
+        for j, p in enumerate(mine):
+            b = bases[p.group]
+            # Curves reach `blend` frames into each neighbour, where the runtime cross-fades.
+            lo = p.start - blend if j else 0
+            hi = p.stop + blend if j + 1 < len(mine) else p.stop
+            coef = project(b, flats[ci][lo:hi + 1])
+            rows.append((p.start, p.group))
+            budget = s.coef_cm / cm
+            curves = [coef[:, i] for i in range(b.k)] or [np.zeros(hi - lo + 1)]
+            curve_payloads.append(curve_set(curves, [budget] * len(curves), m.frame_time, s))
+        clip_payloads.append(clip_payload(m.frame_count, curves_offset, pr.root.full, rows))
+        stats.append({"pieces": len(rows), "groups": sorted({r[1] for r in rows}),
+                      "components": [bases[r[1]].k for r in rows], "six_dof_root": pr.root.full,
+                      "encode_seconds": time.perf_counter() - t0})
+        if progress:
+            progress(m.name)
+    curves_section = rma.section_prefix(len(curve_payloads)) + b"".join(rma.place(curve_payloads))
+    groups_blob = b"".join(group_record(b) for b in bases)
+    joints = joint_table(shared)
+    header = struct.pack("<8I", len(motions), n_groups, shared.marker_count, len(shared.joints),
+                         len(groups_blob), len(curves_section), blend, 0)
+    prefix = header + joints + groups_blob + curves_section
+    basis_bytes = len(groups_blob)
+    for st in stats:
+        st["shared_section_bytes"] = len(prefix)
+    stats[0]["basis_bytes"] = basis_bytes
+    stats[0]["analysis_seconds"] = time.perf_counter() - started
+    return CodecOutput(payloads=clip_payloads, section_prefix=prefix, stats=stats, promise=False,
+                       settings={"pca_variance": s.variance, "groups": n_groups, "blend_frames": blend,
+                                 "components": [b.k for b in bases]})
