@@ -127,8 +127,8 @@ static void curve_view(const prefix* P, const uint8_t* rma_resident, uint32_t of
 
 /* ---------------------------------------------------------------- clip payload */
 typedef struct clip_layout {
-    uint32_t frames, pieces, flags, curves_offset;
-    const uint8_t* piece_table;
+    uint32_t frames, pieces, flags, curves_offset, repeats;
+    const uint8_t *piece_table, *repeat_table;
 } clip_layout;
 
 static uint32_t piece_start(const clip_layout* C, uint32_t i) {
@@ -155,10 +155,30 @@ static uint32_t group_k(const prefix* P, uint32_t g) {
     return mcd_rd_u32(group_at(P, g));
 }
 
-/* Curves of piece i: one per component (one zero curve for a group without components). */
+/* Offset of the primary's curve set when piece i is a repeated piece (seed 003 eq. 6), else 0:
+ * a binary search of the repeat table, which lists repeated pieces in increasing order. */
+static uint32_t piece_primary(const clip_layout* C, uint32_t i) {
+    uint32_t lo = 0, hi = C->repeats;
+    while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2u, p = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * mid);
+        if (p == i) return mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * mid + 4u);
+        if (p < i) lo = mid + 1u;
+        else hi = mid;
+    }
+    return 0u;
+}
+
+/* Curves of piece i: one per component (one zero curve for a group without components), after
+ * the reference curve of a repeated piece. */
 static uint32_t piece_nodes(const prefix* P, const clip_layout* C, uint32_t i) {
     uint32_t k = group_k(P, piece_group(C, i));
-    return k ? k : 1u;
+    return (k ? k : 1u) + (piece_primary(C, i) ? 1u : 0u);
+}
+
+/* Frames of the curve set at `offset` as its own header says (the runtime clamps the
+ * reference into them); 0 when the header is not readable. */
+static uint32_t set_frames(const prefix* P, uint32_t offset) {
+    return (uint64_t)offset + 8u <= P->curves_bytes ? mcd_rd_u32(P->curves + offset + 4u) : 0u;
 }
 
 static mcd_result parse_clip(const mcd_clip_view* v, const prefix* P, clip_layout* C) {
@@ -169,11 +189,15 @@ static mcd_result parse_clip(const mcd_clip_view* v, const prefix* P, clip_layou
     C->pieces = mcd_rd_u32(p + 8);
     C->flags = mcd_rd_u32(p + 12);
     C->curves_offset = mcd_rd_u32(p + 16);
+    C->repeats = mcd_rd_u32(p + 20);
     C->piece_table = p + CLIP_HEADER;
-    if (mcd_rd_u32(p) != v->payload_size || mcd_rd_u32(p + 20)) return MCD_ERROR_MALFORMED;
+    C->repeat_table = C->piece_table;
+    if (mcd_rd_u32(p) != v->payload_size) return MCD_ERROR_MALFORMED;
     if (C->frames != v->frame_count || C->frames == 0 || C->flags > FULL_ROOT) return MCD_ERROR_MALFORMED;
-    if (C->pieces == 0 || C->pieces > C->frames) return MCD_ERROR_MALFORMED;
-    if ((uint64_t)CLIP_HEADER + (uint64_t)PIECE_RECORD * C->pieces != v->payload_size) return MCD_ERROR_MALFORMED;
+    if (C->pieces == 0 || C->pieces > C->frames || C->repeats > C->pieces) return MCD_ERROR_MALFORMED;
+    if ((uint64_t)CLIP_HEADER + (uint64_t)PIECE_RECORD * ((uint64_t)C->pieces + C->repeats) != v->payload_size)
+        return MCD_ERROR_MALFORMED;
+    C->repeat_table = C->piece_table + (size_t)PIECE_RECORD * C->pieces; /* inside: sizes checked */
     if (C->curves_offset < 16u || (C->curves_offset & 3u) || C->curves_offset >= P->curves_bytes)
         return MCD_ERROR_MALFORMED;
     /* Pieces start at 0 and are more than two blend windows long, so cross-fades neither
@@ -184,6 +208,15 @@ static mcd_result parse_clip(const mcd_clip_view* v, const prefix* P, clip_layou
         if (piece_group(C, i) >= P->groups) return MCD_ERROR_MALFORMED;
         if (C->pieces > 1u && ((uint64_t)piece_start(C, i) + 2u * P->blend + 1u > next || next >= C->frames))
             return MCD_ERROR_MALFORMED;
+    }
+    /* Repeated pieces: increasing piece indices, primaries' curve sets inside the section, in
+     * groups with components. */
+    for (i = 0; i < C->repeats; ++i) {
+        const uint8_t* r = C->repeat_table + (size_t)PIECE_RECORD * i;
+        uint32_t piece = mcd_rd_u32(r), offset = mcd_rd_u32(r + 4);
+        if (piece >= C->pieces || (i > 0 && piece <= mcd_rd_u32(r - PIECE_RECORD))) return MCD_ERROR_MALFORMED;
+        if (offset < 16u || (offset & 3u) || offset >= P->curves_bytes) return MCD_ERROR_MALFORMED;
+        if (group_k(P, piece_group(C, piece)) == 0) return MCD_ERROR_MALFORMED;
     }
     return MCD_OK;
 }
@@ -249,6 +282,16 @@ static mcd_result rmap_validate(const mcd_clip_view* v) {
         curve_view(&P, rma_resident, off, frames, nodes, &cv);
         r = mcd_codec_rma_ops.validate(&cv);
         if (r != MCD_OK) return MCD_ERROR_MALFORMED;
+    }
+    /* A primary's curve set: k coefficient curves, as many frames as its header says. */
+    for (i = 0; i < C.repeats; ++i) {
+        mcd_clip_view cv;
+        uint32_t piece = mcd_rd_u32(C.repeat_table + (size_t)PIECE_RECORD * i);
+        uint32_t off = mcd_rd_u32(C.repeat_table + (size_t)PIECE_RECORD * i + 4u), frames = set_frames(&P, off);
+        if (frames == 0) return MCD_ERROR_MALFORMED;
+        curve_view(&P, v->resident ? v->resident + mcd_rd_u32(v->resident + 4) : NULL, off, frames,
+                   group_k(&P, piece_group(&C, piece)), &cv);
+        if (mcd_codec_rma_ops.validate(&cv) != MCD_OK) return MCD_ERROR_MALFORMED;
     }
     return MCD_OK;
 }
@@ -320,12 +363,13 @@ static mcd_result rmap_open_section(const uint8_t* section, uint32_t size, uint8
 typedef struct piece_slot {
     int32_t piece; /* -1 none */
     uint32_t offset, nodes, frames, lo;
+    uint32_t primary, primary_frames; /* a repeated piece's primary curve set (0: none loaded) */
 } piece_slot;
 
 typedef struct rmap_state {
     piece_slot slot[2];
     uint32_t max_nodes;   /* transforms in `curves` */
-    size_t root_scratch, piece_scratch; /* bytes of the rma scratch areas (piece: each) */
+    size_t root_scratch, piece_scratch, primary_scratch; /* bytes of the rma scratch areas (each) */
 } rmap_state;
 
 typedef struct rmap_views {
@@ -335,14 +379,24 @@ typedef struct rmap_views {
     float* world;         /* [nodes][4] aligned-frame world rotations */
     float* markers;       /* [3M] */
     mcd_transform* curves;/* [max_nodes] */
-    uint8_t *root_rma, *piece_rma[2];
+    float* diff;          /* [max_nodes] a repeated piece's coefficient differences */
+    uint8_t *root_rma, *piece_rma[2], *primary_rma[2];
 } rmap_views;
 
 static size_t rmap_scratch_layout(const mcd_clip_view* v, const prefix* P, const clip_layout* C,
-                                  size_t* root_rma, size_t* piece_rma, uint32_t* max_nodes) {
+                                  size_t* root_rma, size_t* piece_rma, size_t* primary_rma, uint32_t* max_nodes) {
     uint32_t i;
     size_t fixed;
-    *root_rma = *piece_rma = 0;
+    *root_rma = *piece_rma = *primary_rma = 0;
+    for (i = 0; i < C->repeats; ++i) {
+        mcd_clip_view cv;
+        uint32_t off = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * i + 4u);
+        uint32_t piece = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * i);
+        size_t sz;
+        curve_view(P, NULL, off, set_frames(P, off), group_k(P, piece_group(C, piece)), &cv);
+        sz = mcd_codec_rma_ops.scratch_size(&cv);
+        if (sz > *primary_rma) *primary_rma = sz;
+    }
     *max_nodes = 3u;
     for (i = 0; i <= C->pieces; ++i) {
         mcd_clip_view cv;
@@ -356,18 +410,18 @@ static size_t rmap_scratch_layout(const mcd_clip_view* v, const prefix* P, const
     }
     fixed = align16z(sizeof(rmap_state)) + align16z(4u * 9u * (size_t)P->joints) + align16z(4u * (size_t)v->node_count) +
             align16z(16u * (size_t)v->node_count) + align16z(4u * 3u * (size_t)P->markers) +
-            align16z(sizeof(mcd_transform) * *max_nodes);
-    return fixed + *root_rma + 2u * *piece_rma;
+            align16z(sizeof(mcd_transform) * *max_nodes) + align16z(4u * (size_t)*max_nodes);
+    return fixed + *root_rma + 2u * *piece_rma + 2u * *primary_rma;
 }
 
 static size_t rmap_scratch_size(const mcd_clip_view* v) {
     prefix P;
     clip_layout C;
-    size_t a, b;
+    size_t a, b, c;
     uint32_t n;
     parse_prefix(v->section, v->section_size, &P); /* validated */
     parse_clip(v, &P, &C);
-    return rmap_scratch_layout(v, &P, &C, &a, &b, &n);
+    return rmap_scratch_layout(v, &P, &C, &a, &b, &c, &n);
 }
 
 static void views(void* scratch, const prefix* P, const mcd_clip_view* v, rmap_views* s) {
@@ -384,9 +438,13 @@ static void views(void* scratch, const prefix* P, const mcd_clip_view* v, rmap_v
     q += align16z(4u * 3u * (size_t)P->markers);
     s->curves = (mcd_transform*)q;
     q += align16z(sizeof(mcd_transform) * s->st->max_nodes);
+    s->diff = (float*)q;
+    q += align16z(4u * (size_t)s->st->max_nodes);
     s->root_rma = q;
     s->piece_rma[0] = q + s->st->root_scratch;
     s->piece_rma[1] = s->piece_rma[0] + s->st->piece_scratch;
+    s->primary_rma[0] = s->piece_rma[1] + s->st->piece_scratch;
+    s->primary_rma[1] = s->primary_rma[0] + s->st->primary_scratch;
 }
 
 /* ---------------------------------------------------------------- geometry */
@@ -515,6 +573,7 @@ static void prepare(const mcd_clip_view* v, const prefix* P, const rmap_views* s
         s->slot[node] = (int32_t)i;
     }
     s->st->slot[0].piece = s->st->slot[1].piece = -1;
+    s->st->slot[0].primary = s->st->slot[1].primary = 0;
 }
 
 /* Piece holding frame position x (the last piece whose start is <= x). */
@@ -557,6 +616,24 @@ static void add_piece_markers(const prefix* P, const clip_layout* C, const mcd_c
     mcd_codec_rma_ops.sample(&cv, local < 0.0f ? 0.0f : local > last ? last : local, 0, s->curves,
                              s->piece_rma[which], fresh);
     k = mcd_rd_u32(group_at(P, g));
+    if (sl->nodes == k + 1u && k > 0u) {
+        /* Repeated piece: curve 0 is the frame of the primary's curve set to read, the others
+         * the differences to add to the primary's coefficients there (seed 003 eq. 6). */
+        uint32_t primary = piece_primary(C, p);
+        float r = s->curves[0].translation[0], rl;
+        int pfresh = 0;
+        for (i = 0; i < k; ++i) s->diff[i] = s->curves[i + 1u].translation[0];
+        if (fresh || sl->primary != primary) {
+            sl->primary = primary;
+            sl->primary_frames = set_frames(P, primary);
+            pfresh = 1;
+        }
+        curve_view(P, rma_resident, primary, sl->primary_frames, k, &cv);
+        rl = (float)(sl->primary_frames - 1u);
+        mcd_codec_rma_ops.sample(&cv, r > 0.0f ? (r < rl ? r : rl) : 0.0f, 0, s->curves, s->primary_rma[which],
+                                 pfresh);
+        for (i = 0; i < k; ++i) s->curves[i].translation[0] += s->diff[i];
+    }
     basis = (const float*)(v->resident + ((const uint32_t*)(v->resident + RESIDENT_HEADER))[g]);
     for (d = 0; d < dims; ++d) s->markers[d] += weight * basis[d];
     for (i = 0; i < k; ++i) {
@@ -583,11 +660,12 @@ static mcd_result rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, m
     rma_resident = v->resident + mcd_rd_u32(v->resident + 4);
     if (fresh) {
         rmap_state* st = (rmap_state*)scratch;
-        size_t a, b;
+        size_t a, b, c;
         uint32_t n;
-        rmap_scratch_layout(v, &P, &C, &a, &b, &n);
+        rmap_scratch_layout(v, &P, &C, &a, &b, &c, &n);
         st->root_scratch = a;
         st->piece_scratch = b;
+        st->primary_scratch = c;
         st->max_nodes = n;
     }
     views(scratch, &P, v, &s);

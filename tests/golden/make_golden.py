@@ -62,8 +62,10 @@ def main(version: str) -> None:
     mixed = Motion(full.skeleton, np.concatenate([full.rotations[1:], run.rotations[1:], full.rotations[1:]]),
                    np.concatenate([full.translations[1:], run.translations[1:], full.translations[1:]]),
                    full.frame_time, "mixed")
-    options = {"rma_pca_library": {"groups": 2, "variance": 0.98}}
+    options = {"rma_pca_library": {"groups": 2, "variance": 0.98},
+               "rma_pca_repeats": {"groups": 2, "variance": 0.98, "repeats": True}}
     cases["rma_pca_library"] = ([walk, mixed], 1.0, "rma-pca")
+    cases["rma_pca_repeats"] = ([mixed], 1.0, "rma-pca")  # repeated pieces (seed 003 eq. 6)
     for name, (motions, tol, codec) in cases.items():
         if (out / f"{name}.mcd").exists():
             print(f"{name}: kept (golden files are never rewritten)")

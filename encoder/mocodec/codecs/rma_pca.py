@@ -29,7 +29,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..curves import fit_keys
+from ..curves import catmull_rom, fit_keys
 from ..motion import Motion, Skeleton
 from ..quantize import Quantizer, StepQuantizer
 from ..rma import pca as P
@@ -38,6 +38,8 @@ from ..rma import segment as S
 from ..tolerance import Tolerance
 from . import CodecOutput, ProgressFn
 from . import rma
+from ..rma import repeats as RP
+from .rma_reference import decode_payload
 from .spline import KIND_TRANSLATION, _Track
 
 SECTION_HEADER = 32
@@ -69,6 +71,15 @@ class RmaPcaSettings:
         Share of a curve's budget given to quantization.
     key_grid : int, default 4
         New keys prefer multiples of this many frames (as in ``rma``).
+    repeats : bool, default False
+        Seed 003 §4.2 and eq. 6: run the repeated-motion analysis per group and code each
+        repeated interval as a reference curve into its primary (the primary as the runtime
+        reconstructs it) plus coefficient differences. Off by default: measured to cost
+        bytes on the dev set (docs/CODECS.md).
+    repeat_threshold_cm : float, default 5.0
+        Self-distance threshold of the analysis, RMS distance per marker.
+    ref_frames : float, default 0.25
+        Max error of a repeated piece's reference curve, in frames of its primary.
     blend_seconds : float, default 0.06
         Width of the cross-fade between two pieces of a clip (the seed's clip-boundary
         smoothing, ~60 ms): each piece's curves reach half of it into the neighbour and the
@@ -83,6 +94,9 @@ class RmaPcaSettings:
     root_cm: float = 0.1
     quant_fraction: float = 0.6
     key_grid: int = 4
+    repeats: bool = False
+    repeat_threshold_cm: float = 5.0
+    ref_frames: float = 0.25
     blend_seconds: float = 0.06
 
     def __post_init__(self) -> None:
@@ -103,6 +117,8 @@ class RmaPcaSettings:
         self.key_grid = int(self.key_grid)
         if not 1 <= self.key_grid <= 8:
             raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
+        if not isinstance(self.repeats, bool):
+            raise ValueError(f"repeats must be true or false, got {self.repeats!r}")
         self.blend_seconds = float(self.blend_seconds)
         if not 0.0 <= self.blend_seconds <= 0.5:
             raise ValueError(f"blend_seconds must be 0 ... 0.5, got {self.blend_seconds}")
@@ -243,11 +259,26 @@ def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: f
 
 
 def curve_set(curves: list[np.ndarray], budgets: list[float], frame_time: float,
-              s: RmaPcaSettings) -> bytes:
-    """An ``RMAL`` payload whose node ``i`` translation carries ``curves[i]``."""
-    frames = len(curves[0])
-    tracks = [_curve_track(i, c, b, s.quant_fraction, s.key_grid) for i, (c, b) in enumerate(zip(curves, budgets))]
-    return rma.serialize(_pseudo_motion(len(curves), frames, frame_time), tracks, s.key_grid)
+              s: RmaPcaSettings, first: list[_Track] | None = None) -> bytes:
+    """An ``RMAL`` payload whose node ``i`` translation carries ``curves[i]`` (after the tracks
+    ``first``, already fitted, which take the first nodes)."""
+    first = first or []
+    frames = len(curves[0]) if curves else len(first[0].values)
+    tracks = first + [_curve_track(len(first) + i, c, b, s.quant_fraction, s.key_grid)
+                      for i, (c, b) in enumerate(zip(curves, budgets))]
+    return rma.serialize(_pseudo_motion(len(tracks), frames, frame_time), tracks, s.key_grid)
+
+
+def track_curve(t: _Track) -> np.ndarray:
+    """What the decoder evaluates for a fitted track's first component, on every frame."""
+    x = np.arange(len(t.values), dtype=np.float64)
+    return catmull_rom(t.keys, t.quantizer.roundtrip(t.key_values), x)[:, 0]
+
+
+def primary_coefficients(payload: bytes, k: int, x: np.ndarray) -> np.ndarray:
+    """Coefficients (len(x), k) the runtime reconstructs from a piece's curve set at ``x``."""
+    sk = _pseudo_motion(k, 1, 1.0).skeleton
+    return decode_payload(payload, sk, x)[1][:, :k, 0]
 
 
 def root_curves(root: PP.RootTrack, cm_per_unit: float, s: RmaPcaSettings) -> tuple[list[np.ndarray], list[float]]:
@@ -296,13 +327,96 @@ def joint_table(layout: PP.MarkerLayout) -> bytes:
 CLIP_HEADER, PIECE_RECORD = 24, 8
 
 
-def clip_payload(frames: int, curves_offset: int, full: bool, pieces: list[tuple[int, int]]) -> bytes:
+def clip_payload(frames: int, curves_offset: int, full: bool, pieces: list[tuple[int, int]],
+                 repeated: list[tuple[int, int]] = ()) -> bytes:
     """A clip's record: its frames, root mode, where its curve sets start in the embedded
-    ``RMAL`` section (the root's, then one per piece, back to back) and its pieces (first
-    frame, group)."""
-    head = struct.pack("<6I", CLIP_HEADER + PIECE_RECORD * len(pieces), frames, len(pieces), int(full),
-                       curves_offset, 0)
-    return head + b"".join(struct.pack("<II", *p) for p in pieces)
+    ``RMAL`` section (the root's, then one per piece, back to back), its pieces (first frame,
+    group) and its repeated pieces (piece index, offset of the primary's curve set)."""
+    size = CLIP_HEADER + PIECE_RECORD * (len(pieces) + len(repeated))
+    head = struct.pack("<6I", size, frames, len(pieces), int(full), curves_offset, len(repeated))
+    return (head + b"".join(struct.pack("<II", *p) for p in pieces)
+            + b"".join(struct.pack("<II", *r) for r in repeated))
+
+
+# ------------------------------------------------------------------------ repetition (§4.2, eq. 6)
+@dataclass
+class SubPiece:
+    """A run of a clip's frames ``[start, stop]`` (stop inclusive, shared with the next) in
+    ``group``; a repeated one refers to sub-piece ``primary`` (an index into the plan) through
+    ``ref``, the primary clip's frame for each of its frames ``start ... stop``."""
+
+    clip: int
+    start: int
+    stop: int
+    group: int
+    primary: int = -1
+    ref: np.ndarray | None = None
+
+
+def repetition_plan(pieces: list[Piece], flats: list[np.ndarray], bases: list[GroupBasis],
+                    frame_time: float, cm: float, s: RmaPcaSettings, blend: int) -> list[SubPiece]:
+    """Pieces split at the repeated intervals the analysis finds in each group (seed 003 §4.2):
+    every repeated interval becomes its own sub-piece, referring to the sub-piece that holds
+    its primary. Intervals that cross a piece, whose primary crosses one, or that would leave a
+    sub-piece shorter than two blend windows are left as they are (coded directly)."""
+    plan = [SubPiece(p.clip, p.start, p.stop, p.group) for p in pieces]
+    if not s.repeats:
+        return plan
+    span = 2 * blend + 1
+    cuts: dict[int, list[tuple[int, int, int, np.ndarray]]] = {}   # piece -> (start, stop excl., primary piece, ref)
+    for g, b in enumerate(bases):
+        members = [i for i, p in enumerate(pieces) if p.group == g]
+        if b.k == 0 or not members:
+            continue
+        ranges = [(pieces[i].start, pieces[i].stop + (pieces[i].stop == len(flats[pieces[i].clip]) - 1))
+                  for i in members]
+        z = np.concatenate([project(b, flats[pieces[i].clip][a:e]) for i, (a, e) in zip(members, ranges)])
+        offsets = np.concatenate([[0], np.cumsum([e - a for a, e in ranges])])
+        thr = s.repeat_threshold_cm / cm * np.sqrt(len(b.mean) / 3)
+        ra = RP.analyse(z, offsets[1:-1], frame_time, RP.RepeatSettings(threshold=thr))
+
+        def where(row: float) -> tuple[int, float]:
+            k = int(np.searchsorted(offsets, row, side="right") - 1)
+            return k, ranges[k][0] + (row - offsets[k])
+
+        for c in ra.clips:
+            if c.kind != RP.REPEATED:
+                continue
+            pc = ra.clips[c.primary]
+            (k0, f0), (k1, _) = where(c.start), where(c.stop - 1)
+            (q0, _), (q1, _) = where(pc.start), where(pc.stop - 1)
+            if k0 != k1 or q0 != q1:
+                continue
+            ref = np.array([where(r)[1] for r in c.ref])
+            cuts.setdefault(members[k0], []).append((int(f0), int(f0) + c.frames, members[q0], ref))
+    # Accept intervals in order, keeping every sub-piece at least `span` frames long; a primary
+    # must stay in a direct sub-piece, so a piece holding an accepted primary is not cut there.
+    out: list[SubPiece] = []
+    first_sub: dict[int, list[int]] = {}
+    accepted: list[tuple[int, int, int, int, np.ndarray]] = []
+    for i, p in enumerate(pieces):
+        first_sub[i] = []
+        at = p.start
+        end = p.stop + 1 if p.stop == len(flats[p.clip]) - 1 else p.stop
+        for a, e, prim, ref in sorted(cuts.get(i, []), key=lambda r: r[0]):
+            if a < at or (a != at and a - at < span) or e - a < span + 1 or (e != end and end - e < span + 1):
+                continue
+            if a > at:
+                first_sub[i].append(len(out))
+                out.append(SubPiece(p.clip, at, a, p.group))
+            accepted.append((len(out), prim, a, e, ref))
+            out.append(SubPiece(p.clip, a, min(e, p.stop), p.group))
+            at = e
+        if at < end:
+            first_sub[i].append(len(out))
+            out.append(SubPiece(p.clip, at, p.stop, p.group))
+    # Each repeated sub-piece refers to the direct sub-piece of its primary piece that holds
+    # its reference frames.
+    for idx, prim, a, e, ref in accepted:
+        holders = [j for j in first_sub[prim] if out[j].start <= ref.min() and ref.max() <= out[j].stop]
+        if holders:
+            out[idx].primary, out[idx].ref = holders[0], ref
+    return out
 
 
 # ------------------------------------------------------------------------ entry point
@@ -335,31 +449,66 @@ def encode(
         rows = np.concatenate([flats[p.clip][p.start:p.stop + (p.stop == len(flats[p.clip]) - 1)]
                                for p in pieces if p.group == g])
         bases.append(group_basis(rows, s.variance))
+    plan = repetition_plan(pieces, flats, bases, min(frame_times), cm, s, blend)
+    budget = s.coef_cm / cm
+    # Direct sub-pieces first (a repeated one needs its primary's coded curves), then the
+    # repeated ones; the sets are laid out per clip afterwards.
+    sets: dict[int, bytes] = {}
+    spans: dict[int, tuple[int, int]] = {}
+    t0 = time.perf_counter()
+    for direct in (True, False):
+        for idx, sp in enumerate(plan):
+            if (sp.primary < 0) != direct:
+                continue
+            mine = [j for j, q in enumerate(plan) if q.clip == sp.clip]
+            pos = mine.index(idx)
+            # Curves reach `blend` frames into each neighbour, where the runtime cross-fades.
+            lo = sp.start - blend if pos else 0
+            hi = sp.stop + blend if pos + 1 < len(mine) else sp.stop
+            spans[idx] = (lo, hi)
+            b = bases[sp.group]
+            coef = project(b, flats[sp.clip][lo:hi + 1])
+            if direct:
+                curves = [coef[:, i] for i in range(b.k)] or [np.zeros(hi - lo + 1)]
+                sets[idx] = curve_set(curves, [budget] * len(curves), motions[sp.clip].frame_time, s)
+                continue
+            # Eq. 6: a reference curve into the primary's curve set (its frames, extended by one
+            # frame per frame past the interval) and the differences to the primary as the
+            # runtime reconstructs it at the decoded reference.
+            plo, phi = spans[sp.primary]
+            x = np.arange(lo, hi + 1, dtype=np.float64)
+            ref = np.interp(x, np.arange(sp.start, sp.start + len(sp.ref)), sp.ref - plo)
+            ref += np.where(x < sp.start, x - sp.start, 0.0) + np.where(x > sp.start + len(sp.ref) - 1,
+                                                                         x - (sp.start + len(sp.ref) - 1), 0.0)
+            ref = np.clip(ref, 0.0, phi - plo)
+            ref_track = _curve_track(0, ref, s.ref_frames, s.quant_fraction, s.key_grid)
+            at = np.clip(track_curve(ref_track), 0.0, phi - plo)
+            diff = coef - primary_coefficients(sets[sp.primary], b.k, at)
+            sets[idx] = curve_set([diff[:, i] for i in range(b.k)], [budget] * b.k,
+                                  motions[sp.clip].frame_time, s, first=[ref_track])
     curve_payloads: list[bytes] = []
     clip_payloads, stats = [], []
+    set_offset: dict[int, int] = {}
+    clip_sets: dict[int, int] = {}
     for ci, (m, pr) in enumerate(zip(motions, prepared)):
-        t0 = time.perf_counter()
         rc, rb = root_curves(pr.root, cm, s)
-        curves_offset = 16 + sum(len(c) for c in curve_payloads)
+        clip_sets[ci] = 16 + sum(len(c) for c in curve_payloads)
         curve_payloads.append(curve_set(rc, rb, m.frame_time, s))
-        rows = []
-        mine = [p for p in pieces if p.clip == ci]
-        for j, p in enumerate(mine):
-            b = bases[p.group]
-            # Curves reach `blend` frames into each neighbour, where the runtime cross-fades.
-            lo = p.start - blend if j else 0
-            hi = p.stop + blend if j + 1 < len(mine) else p.stop
-            coef = project(b, flats[ci][lo:hi + 1])
-            rows.append((p.start, p.group))
-            budget = s.coef_cm / cm
-            curves = [coef[:, i] for i in range(b.k)] or [np.zeros(hi - lo + 1)]
-            curve_payloads.append(curve_set(curves, [budget] * len(curves), m.frame_time, s))
-        clip_payloads.append(clip_payload(m.frame_count, curves_offset, pr.root.full, rows))
+        for idx in (j for j, q in enumerate(plan) if q.clip == ci):
+            set_offset[idx] = 16 + sum(len(c) for c in curve_payloads)
+            curve_payloads.append(sets[idx])
+    for ci, (m, pr) in enumerate(zip(motions, prepared)):
+        mine = [j for j, q in enumerate(plan) if q.clip == ci]
+        rows = [(plan[j].start, plan[j].group) for j in mine]
+        repeated = [(pos, set_offset[plan[j].primary]) for pos, j in enumerate(mine) if plan[j].primary >= 0]
+        clip_payloads.append(clip_payload(m.frame_count, clip_sets[ci], pr.root.full, rows, repeated))
         stats.append({"pieces": len(rows), "groups": sorted({r[1] for r in rows}),
                       "components": [bases[r[1]].k for r in rows], "six_dof_root": pr.root.full,
-                      "encode_seconds": time.perf_counter() - t0})
+                      "repeated_pieces": len(repeated),
+                      "repeated_frames": int(sum(plan[j].stop - plan[j].start for j in mine if plan[j].primary >= 0))})
         if progress:
             progress(m.name)
+    stats[0]["encode_seconds"] = time.perf_counter() - t0
     curves_section = rma.section_prefix(len(curve_payloads)) + b"".join(rma.place(curve_payloads))
     groups_blob = b"".join(group_record(b) for b in bases)
     joints = joint_table(shared)
@@ -373,4 +522,5 @@ def encode(
     stats[0]["analysis_seconds"] = time.perf_counter() - started
     return CodecOutput(payloads=clip_payloads, section_prefix=prefix, stats=stats, promise=False,
                        settings={"pca_variance": s.variance, "groups": n_groups, "blend_frames": blend,
+                                 "repeats": s.repeats,
                                  "components": [b.k for b in bases]})

@@ -70,8 +70,10 @@ def decode_clip(section: bytes, payload: bytes, skeleton: Skeleton,
     cs = gt + basis_bytes
     curves = section[cs:cs + curves_bytes]
     bases = _groups(section, gt, groups, 3 * markers)
-    size, frames, pieces, flags, offset, _ = struct.unpack_from("<6I", payload)
+    size, frames, pieces, flags, offset, repeats = struct.unpack_from("<6I", payload)
     table = np.frombuffer(payload, "<u4", 2 * pieces, 24).reshape(pieces, 2).astype(np.int64)
+    primary = {int(p): int(o) for p, o in
+               np.frombuffer(payload, "<u4", 2 * repeats, 24 + 8 * pieces).reshape(repeats, 2)}
     x = np.asarray(x, dtype=np.float64)
     n = len(x)
     # Root curves.
@@ -103,7 +105,14 @@ def decode_clip(section: bytes, payload: bytes, skeleton: Skeleton,
         sel = weight[p] > 0
         if sel.any():
             local = np.clip(x[sel] - lo, 0, hi - lo)
-            c = _curves(curves, set_off, max(k, 1), local)[:, :k, 0]
+            if p in primary:
+                # Eq. 6: the primary's coefficients at the reference frame, plus differences.
+                c = _curves(curves, set_off, k + 1, local)[:, :k + 1, 0]
+                pf = struct.unpack_from("<I", curves, primary[p] + 4)[0]
+                at = np.clip(c[:, 0], 0, pf - 1)
+                c = _curves(curves, primary[p], k, at)[:, :k, 0] + c[:, 1:]
+            else:
+                c = _curves(curves, set_off, max(k, 1), local)[:, :k, 0]
             mean, axes = bases[table[p, 1]]
             mk[sel] += weight[p, sel, None] * (mean + c @ axes)
         set_off += struct.unpack_from("<I", curves, set_off)[0]
