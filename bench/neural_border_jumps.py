@@ -24,6 +24,7 @@ sys.path.insert(0, str(HERE.parent / "encoder"))
 from mocodec.io import read_bvh  # noqa: E402
 from mocodec.kinematics import forward_kinematics  # noqa: E402
 from mocodec.runtime import Asset  # noqa: E402
+from results_files import write_results  # noqa: E402
 
 DEV = HERE.parent.parent / "shared" / "data" / "cmu"
 STEP = 0.01  # frames before the border: well inside the earlier window, past the runtime's 1e-4 snap
@@ -66,9 +67,7 @@ def main() -> int:
         lines.append(f"| {tol:g} | {len(j)} | {j.max():.3f} | {np.median(j):.3f} | {np.percentile(j, 90):.3f} | "
                      f"{j.max() / tol:.2f} | {over} ({100.0 * over / len(j):.0f} %) |")
     out = results.with_name(results.stem + "_borders")
-    out.with_suffix(".json").write_text(json.dumps(rows, indent=1))
-    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results(out, rows, lines)
     return 0
 
 

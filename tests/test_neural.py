@@ -207,3 +207,31 @@ def test_frequency_choice_naive_and_adaptive(sample_paths):
     residual = np.outer(np.cos(np.pi * 7 * t), np.linspace(1.0, 2.0, 5))
     assert N.next_frequency(residual, []) == 7
     assert N.next_frequency(residual + 0.5 * np.outer(np.cos(np.pi * 3 * t), np.ones(5)), [7]) == 3
+    # A cap on the bin: the peak above it is not taken, the next one below is; none left, None.
+    assert N.next_frequency(residual + 0.5 * np.outer(np.cos(np.pi * 3 * t), np.ones(5)), [], 5) == 3
+    assert N.next_frequency(residual, [1, 2], 2) is None
+
+
+def test_highest_bin_follows_hertz_and_frame_rate():
+    # sin(pi k t) over F frames: k / (2 (F - 1)) cycles per frame.
+    assert N.highest_bin(121, 120.0, 12.0) == 24      # 12 Hz at 120 fps over 121 frames
+    assert N.highest_bin(121, 30.0, 12.0) == 60       # a quarter of 30 fps (7.5 Hz) binds first
+    assert N.highest_bin(2, 120.0, 12.0) == 0         # a two-frame window: no frequency at all
+    with pytest.raises(ValueError, match="max_frequency_hz"):
+        N.NeuralSettings(Tolerance(1.0), max_frequency_hz=0.0)
+
+
+def test_frequencies_and_half_frames_stay_in_band(encoded):
+    m, r = encoded
+    for w in r.windows:
+        assert all(k <= N.highest_bin(w["frames"], m.frame_rate, 12.0) for k in w["freqs"]), w
+    # Half-way between frames, where training never looks, the pose stays near the original's
+    # own half-way pose (slerp, lerp): within twice the tolerance, not a swing between samples.
+    asset = Asset(_single_clip_asset(m, CM, "neural", r.payload))
+    q0, q1 = m.rotations[:-1], m.rotations[1:]
+    sign = np.where(np.sum(q0 * q1, axis=-1, keepdims=True) < 0.0, -1.0, 1.0)
+    rot = q0 + sign * q1
+    rot /= np.linalg.norm(rot, axis=-1, keepdims=True)
+    _, ref = forward_kinematics(m.skeleton, rot, 0.5 * (m.translations[:-1] + m.translations[1:]))
+    _, pos = asset.sample_frames(m.name, np.arange(m.frame_count - 1) + 0.5, world=True)
+    assert np.max(np.linalg.norm(pos - ref, axis=-1)) * CM <= 2.0 * 4.0

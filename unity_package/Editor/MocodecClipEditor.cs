@@ -53,7 +53,9 @@ namespace Mocodec.Editor
                 if (m_Meta.RawBvhBytes > 0)
                     EditorGUILayout.LabelField("Ratio", (m_Meta.RawBvhBytes / (double)clip.Bytes.Length).ToString("0.0") + " : 1 (raw BVH channels as float32)");
                 EditorGUILayout.LabelField("Codec", m_Meta.Codec ?? "?");
-                EditorGUILayout.LabelField("Tolerance", Cm(m_Meta.ToleranceCm));
+                EditorGUILayout.LabelField("Tolerance", m_Meta.HasTolerancePromise
+                    ? Cm(m_Meta.ToleranceCm)
+                    : "none promised (PCA variance " + m_Meta.PcaVariance.ToString("0.###") + ")");
                 EditorGUILayout.LabelField("Encoder", m_Meta.Encoder ?? "?");
             }
             else

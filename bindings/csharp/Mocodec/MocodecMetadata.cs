@@ -28,7 +28,16 @@ namespace Mocodec
         public string Json;
         public string Encoder;
         public string Codec;
+        /// <summary>The promised max error; NaN when the encoder promised none (rma-pca).</summary>
         public double ToleranceCm = double.NaN;
+        /// <summary>The variance fraction of seed 003's settings (rma-pca); NaN otherwise.</summary>
+        public double PcaVariance = double.NaN;
+
+        /// <summary>True when every clip's max error is bounded by <see cref="ToleranceCm"/>.</summary>
+        public bool HasTolerancePromise
+        {
+            get { return !double.IsNaN(ToleranceCm); }
+        }
         public readonly List<ClipMetadata> Clips = new List<ClipMetadata>();
 
         /// <summary>Sum of the clips' raw BVH sizes.</summary>
@@ -60,7 +69,10 @@ namespace Mocodec
             meta.Codec = root.ContainsKey("codec") ? root["codec"] as string : null;
             Dictionary<string, object> settings = Get(root, "settings");
             if (settings != null)
+            {
                 meta.ToleranceCm = Number(settings, "tolerance_cm");
+                meta.PcaVariance = Number(settings, "pca_variance");
+            }
             Dictionary<string, object> clips = Get(root, "clips");
             if (clips != null)
             {

@@ -80,6 +80,12 @@ class NeuralSettings:
         ``"adaptive"`` (Algorithm 1) or ``"naive"`` (the seed's baseline, Omega = {1..K}).
     min_bits, max_bits : int
         Weight quantization bits tried, the fewest that meets the tolerance wins.
+    max_frequency_hz : float, default 12
+        Highest Fourier feature frequency Algorithm 1 may pick (and never above a quarter of
+        the frame rate). Training only sees whole frames: a feature near the frame rate's
+        Nyquist limit fits them and swings between them, where engines also sample (measured
+        before this cap: 93 cm half-way between two frames of a 1 cm asset). Human motion
+        keeps its energy well below 12 Hz.
     """
 
     tolerance: Tolerance
@@ -92,6 +98,7 @@ class NeuralSettings:
     frequencies: str = "adaptive"
     min_bits: int = 6
     max_bits: int = 16
+    max_frequency_hz: float = 12.0
 
     def __post_init__(self) -> None:
         if not 0 <= self.max_frequencies <= MAX_K:
@@ -104,6 +111,8 @@ class NeuralSettings:
             raise ValueError("window_frames must be at least 2")
         if self.iterations < 1:
             raise ValueError("iterations must be at least 1")
+        if not self.max_frequency_hz > 0.0:
+            raise ValueError("max_frequency_hz must be positive")
 
 
 # ------------------------------------------------------------------------ pose parameters
@@ -342,16 +351,27 @@ def fit_stage(p: dict[str, np.ndarray] | None, x: np.ndarray, z: np.ndarray, ite
     return best
 
 
-def next_frequency(residual: np.ndarray, used: list[int]) -> int:
+def highest_bin(frames: int, fps: float, max_hz: float) -> int:
+    """The highest k whose feature sin(pi k t), t = x / (frames - 1), stays at or below
+    ``max_hz`` and a quarter of ``fps``: k / (2 (frames - 1)) cycles per frame."""
+    hz = min(max_hz, fps / 4.0)
+    return int(np.floor(2.0 * (frames - 1) * hz / fps + 1e-9))
+
+
+def next_frequency(residual: np.ndarray, used: list[int], max_bin: int | None = None) -> int | None:
     """Algorithm 1, lines 7-10: the residual's first principal component (the residual is
-    already in weighted units), its DCT, and the peak bin not yet used."""
+    already in weighted units), its DCT, and the peak bin not yet used (at most ``max_bin``);
+    None when no bin is left."""
     r = residual - residual.mean(axis=0)
     _, _, vt = np.linalg.svd(r, full_matrices=False)
     spectrum = np.abs(dct(r @ vt[0], type=2, norm="ortho"))
     spectrum[0] = -1.0            # the constant is the biases' job
     spectrum[list(used)] = -1.0
     spectrum[1 << 16:] = -1.0     # frequencies are stored as u16
-    return int(np.argmax(spectrum))
+    if max_bin is not None:
+        spectrum[max_bin + 1:] = -1.0
+    best = int(np.argmax(spectrum))
+    return best if spectrum[best] >= 0.0 else None
 
 
 # ------------------------------------------------------------------------ quantization, payload
@@ -524,10 +544,12 @@ def _normalisation(layout: PoseLayout) -> tuple[np.ndarray, np.ndarray]:
 
 
 def algorithm1(z: np.ndarray, frames: int, mode: str, k_max: int, iterations: int, restart: bool,
-               rng: np.random.Generator) -> Iterator[tuple[list[int], dict[str, np.ndarray]]]:
+               rng: np.random.Generator, max_bin: int | None = None
+               ) -> Iterator[tuple[list[int], dict[str, np.ndarray]]]:
     """Algorithm 1's stages on normalised targets ``z`` (F, M): yields (frequencies, weights)
     after each fit, K = 0 ... k_max; the caller stops it when the error is good enough.
-    ``mode`` "naive" takes Omega = {1, ..., K} (DCT bins) instead of the residual's peaks."""
+    ``mode`` "naive" takes Omega = {1, ..., K} (DCT bins) instead of the residual's peaks;
+    no bin above ``max_bin`` is taken (the stages end when none is left)."""
     fx = np.arange(frames, dtype=np.float64)
     freqs: list[int] = []
     p: dict[str, np.ndarray] | None = None
@@ -537,7 +559,10 @@ def algorithm1(z: np.ndarray, frames: int, mode: str, k_max: int, iterations: in
         yield list(freqs), p
         if len(freqs) >= k_max:
             return
-        freqs.append(len(freqs) + 1 if mode == "naive" else next_frequency(z - forward(p, x), freqs))
+        k = len(freqs) + 1 if mode == "naive" else next_frequency(z - forward(p, x), freqs, max_bin)
+        if k is None or (max_bin is not None and k > max_bin):
+            return
+        freqs.append(k)
         p = grow_network(p, rng)
 
 
@@ -590,7 +615,8 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
         while queue:
             s, n = queue.pop(0)
             t0 = time.perf_counter()
-            found = _fit_window(s, n, z, layout, scale, offset, settings, tol_units, window_error, history, on_stage)
+            found = _fit_window(s, n, z, layout, scale, offset, settings, motion.frame_rate, tol_units, window_error,
+                                history, on_stage)
             if found is None:
                 if n <= 2:
                     raise ToleranceNotMet(f"{motion.name}: frames {s}-{s + n - 1} miss the tolerance "
@@ -623,7 +649,7 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
 
 
 def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.ndarray, offset: np.ndarray,
-                settings: NeuralSettings, tol_units: np.ndarray,
+                settings: NeuralSettings, fps: float, tol_units: np.ndarray,
                 window_error: Callable[[int, np.ndarray], np.ndarray], history: list[dict[str, float]],
                 on_stage: Callable[[dict[str, float]], None] | None
                 ) -> tuple[WindowNetwork, dict[str, np.ndarray], int] | None:
@@ -634,7 +660,7 @@ def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.nda
     # Seeded by the window too: the same seed gives the same asset, windows differ.
     rng = np.random.default_rng([settings.seed, s, n])
     stages = algorithm1(z[s:s + n], n, settings.frequencies, settings.max_frequencies, settings.iterations,
-                        settings.restart, rng)
+                        settings.restart, rng, highest_bin(n, fps, settings.max_frequency_hz))
     for stage, (freqs, p) in enumerate(stages, start=1):
         err = window_error(s, offset + scale * forward(p, fourier_features(x, n, freqs)))
         rec = {"start": s, "frames": n, "K": len(freqs), "max_error_cm": float(np.max(err / tol_units)),
