@@ -235,3 +235,39 @@ def test_frequencies_and_half_frames_stay_in_band(encoded):
     _, ref = forward_kinematics(m.skeleton, rot, 0.5 * (m.translations[:-1] + m.translations[1:]))
     _, pos = asset.sample_frames(m.name, np.arange(m.frame_count - 1) + 0.5, world=True)
     assert np.max(np.linalg.norm(pos - ref, axis=-1)) * CM <= 2.0 * 4.0
+
+
+def test_rotation_targets_stay_continuous_past_pi(sample_paths):
+    # A joint that mostly rests and once turns 250 degrees about one axis: relative to its mean
+    # it crosses pi. Folded to w >= 0 the rotation vector flipped there (|dv| ~ 2 pi in one
+    # frame), and the network's path between those frames went through the identity.
+    from dataclasses import replace
+
+    from mocodec.rotations import quat_from_axis_angle
+
+    m = _clip(sample_paths, 0, 120, first=1)
+    joint = next(i for i in range(m.skeleton.node_count) if m.skeleton.parents[i] >= 0
+                 and m.skeleton.rotation_order(i))
+    angle = np.radians(np.concatenate([np.zeros(84), np.linspace(0.0, 250.0, 36)]))
+    rotations = m.rotations.copy()
+    rotations[:, joint] = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), angle)
+    layout = N.pose_layout(replace(m, rotations=rotations))
+    out = layout.entries[joint, 2]
+    v = layout.targets[:, out:out + 3]
+    step = np.radians(250.0 / 35)
+    assert np.max(np.linalg.norm(np.diff(v, axis=0), axis=1)) <= 1.01 * step
+    # The vectors still decode to the joint's rotations (angles past pi included).
+    q = N.quat_from_axis_angle_vec(v)
+    rel = layout.refs[layout.ref_index[joint]]
+    back = np.abs(np.sum(rotations[:, joint] * N.R.quat_multiply(rel, q), axis=-1))
+    assert np.min(back) > 1.0 - 1e-7  # the reference is stored as float32
+
+
+def test_two_frame_windows_are_straight_lines(sample_paths):
+    m = _clip(sample_paths, 0, 40)  # frame 0 is CMU's T-pose: a two-frame window of its own
+    r = _encode_payload(m, 4.0)
+    model = N.read_payload(r.payload)
+    assert model.windows[0].frames == 2
+    y = model.parameters(np.array([0.0, 0.25, 0.5, 0.75, 0.999]))
+    line = y[0] + np.outer([0.0, 0.25, 0.5, 0.75, 0.999], model.parameters(np.array([0.999]))[0] - y[0]) / 0.999
+    assert np.allclose(y, line, atol=1e-5 * np.max(np.abs(y)))

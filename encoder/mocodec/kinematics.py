@@ -50,3 +50,23 @@ def lever_arms(skeleton: Skeleton, positions: np.ndarray) -> np.ndarray:
             d = np.linalg.norm(positions[:, desc] - positions[:, i:i + 1], axis=-1)
             out[i] = float(d.max())
     return out
+
+
+def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The original half-way between consecutive frames, where engines also sample.
+
+    Returns world positions ``(F-1, N, 3)`` (local rotations by slerp at one half, which is the
+    normalised sum of the two quaternions on the same hemisphere; translations averaged), and
+    per interval the largest point step between its two frames ``(F-1,)`` in file units and
+    the largest local joint turn ``(F-1,)`` in degrees: large ones mark capture glitches, where
+    no half-way pose was recorded.
+    """
+    world = world_positions(motion)
+    step = np.max(np.linalg.norm(world[1:] - world[:-1], axis=-1), axis=1)
+    q0, q1 = motion.rotations[:-1], motion.rotations[1:]
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    turn = np.degrees(2.0 * np.arccos(np.clip(np.abs(dot[..., 0]), 0.0, 1.0))).max(axis=1)
+    rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
+    rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+    trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])
+    return forward_kinematics(motion.skeleton, rot, trans)[1], step, turn

@@ -28,7 +28,7 @@ from scipy.optimize import minimize
 
 from .. import rotations as R
 from ..bitpack import BitWriter
-from ..kinematics import forward_kinematics, lever_arms
+from ..kinematics import forward_kinematics, halfway_world, lever_arms
 from ..motion import Motion
 from ..tolerance import Tolerance
 
@@ -86,6 +86,13 @@ class NeuralSettings:
         Nyquist limit fits them and swings between them, where engines also sample (measured
         before this cap: 93 cm half-way between two frames of a 1 cm asset). Human motion
         keeps its energy well below 12 Hz.
+    halfway_factor : float, default 2
+        The window's network must also stay within this many tolerances of the original's
+        half-way pose (slerp) between every two of its frames; 0 turns the guard off. Fitting
+        frames only, a network could still bend sharply between two of them to follow a fast
+        wrist (measured: 43 cm at 3 cm, 05_12 frame 1315.5, with every frequency in band).
+        Intervals where the capture itself jumps (``jump_cm``, or a joint turning more than
+        45 degrees in one frame) are not held to it; nor are two-frame windows.
     """
 
     tolerance: Tolerance
@@ -99,6 +106,7 @@ class NeuralSettings:
     min_bits: int = 6
     max_bits: int = 16
     max_frequency_hz: float = 12.0
+    halfway_factor: float = 2.0
 
     def __post_init__(self) -> None:
         if not 0 <= self.max_frequencies <= MAX_K:
@@ -113,6 +121,13 @@ class NeuralSettings:
             raise ValueError("iterations must be at least 1")
         if not self.max_frequency_hz > 0.0:
             raise ValueError("max_frequency_hz must be positive")
+        if not self.halfway_factor >= 0.0:
+            raise ValueError("halfway_factor must be 0 (off) or positive")
+
+
+GLITCH_TURN_DEG = 45.0
+"""A joint turning further than this between two frames (5,400 degrees/s at 120 fps) is a
+capture glitch, not motion: the half-way guard does not hold the network to it."""
 
 
 # ------------------------------------------------------------------------ pose parameters
@@ -142,7 +157,8 @@ def _unit_f32(q: np.ndarray) -> np.ndarray:
 
 
 def axis_angle_from_quat(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) of unit quaternions with w >= 0 (angle <= pi)."""
+    """Rotation vectors (..., 3) of unit quaternions; angle 2 atan2(|v|, w) in [0, 2 pi], so
+    a quaternion path that is continuous gives a continuous vector path."""
     v = q[..., :3]
     s = np.linalg.norm(v, axis=-1, keepdims=True)
     angle = 2.0 * np.arctan2(s, q[..., 3:4])
@@ -190,8 +206,14 @@ def pose_layout(motion: Motion) -> PoseLayout:
                 m += 4
             else:
                 ref = _unit_f32(R.quat_mean(q))
+                # Continuous in time, angles past pi included: folding every frame to w >= 0
+                # turned a rotation crossing pi from the mean into v -> -v between two frames,
+                # and the network's path between them through the identity (a 43 cm swing of
+                # a hand half-way between frames 1315 and 1316 of 05_12). The hemisphere of
+                # most frames keeps most angles below pi.
                 rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), q))
-                rel = np.where(rel[:, 3:4] < 0, -rel, rel)
+                if np.sum(rel[:, 3]) < 0.0:
+                    rel = -rel
                 entries[i, 0], entries[i, 2] = ROT_AXIS_ANGLE, m
                 ref_index[i] = len(refs)
                 refs.append(ref)
@@ -605,6 +627,15 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
         rot, trans = local_pose(layout, motion, y)
         return np.linalg.norm(forward_kinematics(sk, rot, trans)[1] - world[s:s + len(y)], axis=-1)
 
+    half_world, half_step, half_turn = halfway_world(motion)
+    held = (half_step * cm_per_unit <= settings.jump_cm) & (half_turn <= GLITCH_TURN_DEG)
+
+    def halfway_error(s: int, y: np.ndarray) -> np.ndarray:
+        """Error at s + 0.5 ... of parameters ``y`` there; 0 on intervals the guard skips."""
+        rot, trans = local_pose(layout, motion, y)
+        err = np.linalg.norm(forward_kinematics(sk, rot, trans)[1] - half_world[s:s + len(y)], axis=-1)
+        return np.where(held[s:s + len(y), None], err, 0.0)
+
     history: list[dict[str, float]] = []
     done: list[tuple[WindowNetwork, dict[str, np.ndarray], dict[str, object]]] = []
     queue = initial_windows(world, cm_per_unit, settings.window_frames, settings.jump_cm)
@@ -616,7 +647,7 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
             s, n = queue.pop(0)
             t0 = time.perf_counter()
             found = _fit_window(s, n, z, layout, scale, offset, settings, motion.frame_rate, tol_units, window_error,
-                                history, on_stage)
+                                halfway_error, history, on_stage)
             if found is None:
                 if n <= 2:
                     raise ToleranceNotMet(f"{motion.name}: frames {s}-{s + n - 1} miss the tolerance "
@@ -650,7 +681,8 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
 
 def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.ndarray, offset: np.ndarray,
                 settings: NeuralSettings, fps: float, tol_units: np.ndarray,
-                window_error: Callable[[int, np.ndarray], np.ndarray], history: list[dict[str, float]],
+                window_error: Callable[[int, np.ndarray], np.ndarray],
+                halfway_error: Callable[[int, np.ndarray], np.ndarray], history: list[dict[str, float]],
                 on_stage: Callable[[dict[str, float]], None] | None
                 ) -> tuple[WindowNetwork, dict[str, np.ndarray], int] | None:
     """Algorithm 1 on frames s ... s + n - 1 until the quantized network (fewest bits) meets
@@ -659,8 +691,18 @@ def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.nda
     x = np.arange(n, dtype=np.float64)
     # Seeded by the window too: the same seed gives the same asset, windows differ.
     rng = np.random.default_rng([settings.seed, s, n])
-    stages = algorithm1(z[s:s + n], n, settings.frequencies, settings.max_frequencies, settings.iterations,
-                        settings.restart, rng, highest_bin(n, fps, settings.max_frequency_hz))
+    if n <= 2:
+        # Two frames (a jump's own window, or the end of halving): the exact straight line in
+        # parameters, built rather than trained. A trained two-point fit is free between its
+        # frames and was seen to bend 35 cm there; this network is linear on [0, 1], where
+        # both hidden layers stay positive and ELU is the identity.
+        z0, dz = z[s], z[s + n - 1] - z[s]
+        stages = iter([([], {"W0": np.array([[1.0], [0.0]]), "b0": np.ones(2), "W1": np.eye(2),
+                              "b1": np.zeros(2), "W2": np.stack([dz, z0 - dz], axis=1),
+                              "b2": np.zeros(z.shape[1])})])
+    else:
+        stages = algorithm1(z[s:s + n], n, settings.frequencies, settings.max_frequencies, settings.iterations,
+                            settings.restart, rng, highest_bin(n, fps, settings.max_frequency_hz))
     for stage, (freqs, p) in enumerate(stages, start=1):
         err = window_error(s, offset + scale * forward(p, fourier_features(x, n, freqs)))
         rec = {"start": s, "frames": n, "K": len(freqs), "max_error_cm": float(np.max(err / tol_units)),
@@ -677,7 +719,14 @@ def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.nda
             y = np.clip(y, -MAX_ABS_VALUE, MAX_ABS_VALUE)
             # A small margin for the runtime's float32 arithmetic (agrees to ~1e-4 cm).
             if np.all(window_error(s, y) <= tol_units[None, :] * 0.999):
-                return w, p, stage
+                if n <= 2 or settings.halfway_factor == 0.0:
+                    return w, p, stage
+                yh = offset + scale * forward(w.net.weights(), fourier_features(x[:-1] + 0.5, n, freqs))
+                yh = np.clip(yh, -MAX_ABS_VALUE, MAX_ABS_VALUE)
+                if np.all(halfway_error(s, yh) <= tol_units[None, :] * settings.halfway_factor):
+                    return w, p, stage
+                history[-1]["halfway_miss"] = 1.0
+                break  # a bend between frames: more bits will not remove it; a later stage or a split may
     return None
 
 
