@@ -263,6 +263,36 @@ def test_rotation_targets_stay_continuous_past_pi(sample_paths):
     assert np.min(back) > 1.0 - 1e-7  # the reference is stored as float32
 
 
+def test_rotation_vectors_stay_well_conditioned():
+    # A joint wobbling about the identity, then a capture glitch of three 120 degree steps
+    # (a full turn), then wobbling again. Continued through the glitch its quaternions sit on the
+    # far hemisphere (w ~ -1), where a vector of angle ~2 pi flips its axis on a small turn (seen
+    # on 06_13's left hand: 13 cm off half-way between two frames). Folded, unwrapped only
+    # between glitches, the vectors stay small and step no more than the rotation does.
+    from mocodec.rotations import quat_from_axis_angle, quat_make_continuous
+
+    t = np.linspace(0.0, 1.0, 30)
+    axis = np.stack([np.cos(6.0 * t), np.sin(6.0 * t), 0.3 * np.ones_like(t)], axis=1)
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    wobble = quat_from_axis_angle(axis, np.radians(10.0) * np.sin(9.0 * t))  # through the identity
+    glitch = quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), np.radians([120.0, 240.0, 360.0]))
+    q = quat_make_continuous(np.concatenate([wobble, glitch, wobble]))
+    v = N.continuous_rotation_vectors(q)
+    calm = np.r_[0:30, 33:63]
+    assert np.max(np.linalg.norm(v[calm], axis=1)) <= np.radians(10.0) + 1e-9
+    turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=1)), 0.0, 1.0))
+    step = np.linalg.norm(np.diff(v, axis=0), axis=1)
+    assert np.all((step <= 1.01 * turn + 1e-12) | (np.degrees(turn) > N.GLITCH_TURN_DEG))
+    back = np.abs(np.sum(N.quat_from_axis_angle_vec(v) * q, axis=1))
+    assert np.min(back) > 1.0 - 1e-12
+    # Past pi the angle unwraps (to 200 degrees), but not across a glitch: a 170 degree jump in
+    # one frame to 10 degrees starts afresh instead of carrying 2 pi (370 degrees).
+    deg = np.concatenate([np.linspace(0.0, 200.0, 41), [370.0, 372.0]])
+    v = N.continuous_rotation_vectors(quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(deg)))
+    assert np.allclose(np.degrees(v[:41, 2]), deg[:41])
+    assert np.allclose(np.degrees(v[41:, 2]), [10.0, 12.0])
+
+
 def test_two_frame_windows_are_straight_lines(sample_paths):
     m = _clip(sample_paths, 0, 40)  # frame 0 is CMU's T-pose: a two-frame window of its own
     r = _encode_payload(m, 4.0)

@@ -156,15 +156,29 @@ def _unit_f32(q: np.ndarray) -> np.ndarray:
     return _f32(q / np.linalg.norm(q))
 
 
-def axis_angle_from_quat(q: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) of unit quaternions; angle 2 atan2(|v|, w) in [0, 2 pi], so
-    a quaternion path that is continuous gives a continuous vector path."""
-    v = q[..., :3]
-    s = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, q[..., 3:4])
-    # Near zero angle the vector part is angle/2 times the axis: the ratio tends to 2.
-    ratio = np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 2.0)
-    return v * ratio
+def continuous_rotation_vectors(q: np.ndarray, reset_deg: float = GLITCH_TURN_DEG) -> np.ndarray:
+    """Rotation vectors (F, 3) of a path of unit quaternions (F, 4) that step little where the
+    rotation steps little.
+
+    Angles are folded to [0, pi] (the well-conditioned range: near 2 pi every axis gives almost
+    the identity, so a small turn there can flip the vector, seen on 06_13's left hand). Then
+    the axis keeps its direction from frame to frame (a flip negates axis and angle together)
+    and the angle is unwrapped by 2 pi, so a path crossing pi stays continuous. The unwrapping
+    starts afresh after a glitch (a turn past ``reset_deg`` in one frame), where there is
+    nothing to be continuous with and a carried 2 pi would only push later frames towards the
+    ill-conditioned range."""
+    q = np.where(q[:, 3:4] < 0.0, -q, q)
+    s = np.linalg.norm(q[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(s, q[:, 3])
+    axis = np.where(s[:, None] > 1e-12, q[:, :3] / np.maximum(s, 1e-300)[:, None], 0.0)
+    flip = np.concatenate(([False], np.sum(axis[1:] * axis[:-1], axis=1) < 0.0))
+    sign = np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)
+    signed = sign * angle
+    offset = np.unwrap(signed) - signed
+    turn = np.degrees(2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=1)), 0.0, 1.0)))
+    start = np.concatenate(([True], turn > reset_deg))
+    offset -= offset[np.maximum.accumulate(np.where(start, np.arange(len(q)), 0))]
+    return axis * sign[:, None] * (signed + offset)[:, None]
 
 
 def quat_from_axis_angle_vec(v: np.ndarray) -> np.ndarray:
@@ -206,18 +220,14 @@ def pose_layout(motion: Motion) -> PoseLayout:
                 m += 4
             else:
                 ref = _unit_f32(R.quat_mean(q))
-                # Continuous in time, angles past pi included: folding every frame to w >= 0
-                # turned a rotation crossing pi from the mean into v -> -v between two frames,
-                # and the network's path between them through the identity (a 43 cm swing of
-                # a hand half-way between frames 1315 and 1316 of 05_12). The hemisphere of
-                # most frames keeps most angles below pi.
-                rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), q))
-                if np.sum(rel[:, 3]) < 0.0:
-                    rel = -rel
+                # Continuous in time: a vector folded at pi flipped v -> -v between two frames
+                # and the network's path between them ran through the identity (a hand 43 cm
+                # off half-way between frames 1315 and 1316 of 05_12).
+                rel = R.quat_multiply(R.quat_conjugate(ref), q)
                 entries[i, 0], entries[i, 2] = ROT_AXIS_ANGLE, m
                 ref_index[i] = len(refs)
                 refs.append(ref)
-                cols.append(axis_angle_from_quat(rel))
+                cols.append(continuous_rotation_vectors(rel))
                 weights += [w] * 3
                 m += 3
         if sk.position_axes(i):
