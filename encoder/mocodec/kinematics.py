@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .motion import Motion, Skeleton
-from .rotations import quat_multiply, quat_rotate
+from .rotations import quat_angle, quat_multiply, quat_rotate
 
 
 def forward_kinematics(
@@ -65,7 +65,7 @@ def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     step = np.max(np.linalg.norm(world[1:] - world[:-1], axis=-1), axis=1)
     q0, q1 = motion.rotations[:-1], motion.rotations[1:]
     dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    turn = np.degrees(2.0 * np.arccos(np.clip(np.abs(dot[..., 0]), 0.0, 1.0))).max(axis=1)
+    turn = np.degrees(quat_angle(q0, q1)).max(axis=1)
     rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
     rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
     trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])

@@ -175,7 +175,7 @@ def continuous_rotation_vectors(q: np.ndarray, reset_deg: float = GLITCH_TURN_DE
     sign = np.where(np.cumsum(flip) % 2 == 1, -1.0, 1.0)
     signed = sign * angle
     offset = np.unwrap(signed) - signed
-    turn = np.degrees(2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=1)), 0.0, 1.0)))
+    turn = np.degrees(R.quat_angle(q[:-1], q[1:]))
     start = np.concatenate(([True], turn > reset_deg))
     offset -= offset[np.maximum.accumulate(np.where(start, np.arange(len(q)), 0))]
     return axis * sign[:, None] * (signed + offset)[:, None]
