@@ -25,12 +25,11 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "encoder"))
 
 from mocodec.io import read_bvh  # noqa: E402
-from between_frames import MAX_STEP_CM, MAX_TURN_DEG  # noqa: E402
+from between_frames import CM, DEV, MAX_STEP_CM, MAX_TURN_DEG  # noqa: E402
 from mocodec.kinematics import halfway_world  # noqa: E402
 from mocodec.runtime import Asset  # noqa: E402
 from results_files import write_results  # noqa: E402
 
-DEV = HERE.parent.parent / "shared" / "data" / "cmu"
 STEP = 0.01  # frames before the border: well inside the earlier window, past the runtime's 1e-4 snap
 
 
@@ -67,7 +66,7 @@ def main() -> int:
         asset = Asset(Path(s["asset"]).read_bytes())
         jumps = []
         for clip, c in s["clips"].items():
-            jumps += border_jumps(asset, clip, c["windows"], 5.6444)
+            jumps += border_jumps(asset, clip, c["windows"], CM)
         calm = [b for b in jumps if not b["glitch"]]
         glitch = [b["jump_cm"] for b in jumps if b["glitch"]]
         j = np.array([b["jump_cm"] for b in calm])
