@@ -18,6 +18,8 @@ HEADER = RUNTIME / "include" / "mocodec.h"
 ENTROPY_HEADER = RUNTIME / "src" / "entropy.h"
 # So is the ik-predict prediction step: the encoder's closed loop runs the decoder's code.
 IKPREDICT_HEADER = RUNTIME / "src" / "ikpredict.h"
+# And the numbers the encoder stores about a payload (the scratch a clip needs).
+OFFLINE_HEADER = RUNTIME / "src" / "offline.h"
 
 # Glue that only loops over the public API, so Python pays one call per clip, not per frame.
 GLUE = """
@@ -56,9 +58,10 @@ ffibuilder = FFI()
 ffibuilder.cdef(header_cdef() + GLUE)
 ffibuilder.cdef(header_cdef(ENTROPY_HEADER))
 ffibuilder.cdef(header_cdef(IKPREDICT_HEADER))
+ffibuilder.cdef(header_cdef(OFFLINE_HEADER))
 ffibuilder.set_source(
     "mocodec_runtime._native",
-    '#include "mocodec.h"\n#include "entropy.h"\n#include "ikpredict.h"\n' + GLUE_SOURCE,
+    '#include "mocodec.h"\n#include "entropy.h"\n#include "ikpredict.h"\n#include "offline.h"\n' + GLUE_SOURCE,
     # setuptools wants paths relative to the project directory.
     sources=[os.path.relpath(p, HERE) for p in sorted((RUNTIME / "src").glob("*.c"))],
     include_dirs=[os.path.relpath(RUNTIME / d, HERE) for d in ("include", "src")],

@@ -51,3 +51,35 @@ def read_bits(data: bytes, bit: int, width: int) -> int:
     last = (bit + width + 7) >> 3
     word = int.from_bytes(data[first:last], "little")
     return (word >> (bit & 7)) & ((1 << width) - 1)
+
+
+def pack_fields(values: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, int]:
+    """Pack fields (each 0 ... 32 bits, ``values`` already within their widths) back to back,
+    least significant bit first, into little-endian 64-bit words; returns (words, bit length).
+
+    Vectorised: every field lands in at most two words, so two scatter-ORs place them all."""
+    v, w = np.broadcast_arrays(np.asarray(values, dtype=np.uint64), np.asarray(widths, dtype=np.int64))
+    v, w = v.ravel(), w.ravel()
+    if np.any(w < 0) or np.any(w > 32):
+        raise ValueError("field widths must be 0 ... 32")
+    total = int(w.sum())
+    words = np.zeros(total // 64 + 2, dtype=np.uint64)
+    if total == 0:
+        return words[:0], 0
+    start = np.concatenate(([0], np.cumsum(w)[:-1]))
+    keep = w > 0
+    v, w, start = v[keep], w[keep], start[keep]
+    idx = start >> 6
+    shift = (start & 63).astype(np.uint64)
+    np.bitwise_or.at(words, idx, v << shift)
+    spill = (start & 63) + w > 64
+    if spill.any():
+        np.bitwise_or.at(words, idx[spill] + 1, v[spill] >> (np.uint64(64) - shift[spill]))
+    return words[: (total + 63) // 64], total
+
+
+def fields_bytes(values: np.ndarray, widths: np.ndarray, align: int = 4) -> bytes:
+    """:func:`pack_fields` as bytes, zero-padded to a multiple of ``align``."""
+    words, total = pack_fields(values, widths)
+    data = words.astype("<u8").tobytes()[: (total + 7) // 8]
+    return data + bytes((-len(data)) % align)

@@ -315,7 +315,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     raw_total = sum(c["raw_bvh_bytes"] or 0 for c in clips)
     info = {
         "file": str(args.asset), "bytes": len(data), "format": f"{summary.version[0]}.{summary.version[1]}",
-        "valid": status.name, "resident_bytes": asset.resident_size, "scratch_bytes": asset.scratch_size,
+        "valid": status.name, "scratch_bytes": asset.scratch_size,
+        "engine_bytes": len(data) + asset.scratch_size,
         "sections": [{"kind": k, "version": v, "offset": o, "bytes": s} for k, v, o, s in summary.sections],
         "skeletons": [{"nodes": asset.skeleton_info(i)[0], "cm_per_unit": asset.skeleton_info(i)[1]}
                       for i in range(asset.skeleton_count)],
@@ -328,7 +329,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"{info['file']}: mocodec asset, format {info['format']}, {len(data):,} bytes, {status.name.lower()}")
     if info["encoder"]:
         print(f"  written by {info['encoder']}, settings {json.dumps(info['settings'])}")
-    print(f"  memory to sample: {info['resident_bytes']:,} B resident + {info['scratch_bytes']:,} B scratch per thread")
+    print(f"  memory to sample: the asset itself ({len(data):,} B, sampled in place) + "
+          f"{info['scratch_bytes']:,} B scratch per playing instance")
     if info["ratio_bvh"]:
         print(f"  ratio {info['ratio_bvh']:.1f}:1 vs BVH float32 channels")
     print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))

@@ -17,16 +17,21 @@ import numpy as np
 from .motion import Skeleton
 
 MAGIC = b"\x89MCD\r\n\x1a\n"
-FORMAT_MAJOR = 1
+FORMAT_MAJOR = 2
 FORMAT_MINOR = 0
 HEADER_SIZE = 32
+SKEL_VERSION = 2
+CLIP_VERSION = 2
+SKEL_NODE_SIZE = 56
+NODE_JOINT, NODE_END_SITE, NODE_VIRTUAL = 0, 1, 2
 
 CODEC_IDS = {"spline": 1, "rma": 2, "ik-predict": 3, "fk-wavelet": 4, "neural": 5, "rma-pca": 6}
 CODEC_NAMES = {v: k for k, v in CODEC_IDS.items()}
 CODEC_SECTION_KINDS = {"spline": b"SPLN", "rma": b"RMAL", "rma-pca": b"RMAP", "ik-predict": b"IKPR",
                        "fk-wavelet": b"FKWV", "neural": b"NEUR"}
-# Section layout versions other than 1 (docs/FORMAT.md): NEUR 2 holds windowed networks.
-CODEC_SECTION_VERSIONS = {"neural": 2}
+# Section layout versions other than 1 (docs/FORMAT.md): NEUR 2 holds windowed networks;
+# RMAL 2, FKWV 2 and RMAP 2 are sampled in place (format 2.0).
+CODEC_SECTION_VERSIONS = {"neural": 2, "rma": 2, "fk-wavelet": 2, "rma-pca": 2}
 
 
 class ContainerError(ValueError):
@@ -57,36 +62,39 @@ class ClipEntry:
 
 
 def skeleton_section(skeleton: Skeleton, cm_per_unit: float) -> bytes:
-    """``SKEL`` section bytes for a skeleton."""
+    """``SKEL`` section bytes for a skeleton (version 2: rest translation, rotation, scale)."""
     n = skeleton.node_count
     strings = bytearray()
     name_offsets = []
     for name in skeleton.names:
         name_offsets.append(len(strings))
         strings += name.encode("utf-8") + b"\0"
-    out = bytearray(struct.pack("<IIfI", n, 0, cm_per_unit, 16 + 32 * n))
+    out = bytearray(struct.pack("<IIfI", n, 0, cm_per_unit, 16 + SKEL_NODE_SIZE * n))
     for i in range(n):
         ch = list(skeleton.channels[i]) + [0xFF] * (6 - len(skeleton.channels[i]))
+        kind = NODE_VIRTUAL if skeleton.is_virtual[i] else NODE_END_SITE if skeleton.is_end_site[i] else NODE_JOINT
         out += struct.pack(
-            "<iI3fBB6BI",
+            "<iI3f4f3fBB6B",
             int(skeleton.parents[i]),
             name_offsets[i],
             *np.asarray(skeleton.offsets[i], dtype=np.float32).tolist(),
-            1 if skeleton.is_end_site[i] else 0,
+            *np.asarray(skeleton.rest_rotations[i], dtype=np.float32).tolist(),
+            *np.asarray(skeleton.rest_scales[i], dtype=np.float32).tolist(),
+            kind,
             len(skeleton.channels[i]),
             *ch,
-            0,
         )
     return bytes(out + strings)
 
 
 def clip_section(entries: list[ClipEntry], section_index: dict[str, int],
-                 payload_offsets: list[int]) -> bytes:
-    """``CLIP`` section bytes; ``section_index`` maps codec name to its section's index."""
+                 payload_offsets: list[int], scratch: list[int]) -> bytes:
+    """``CLIP`` section bytes; ``section_index`` maps codec name to its section's index,
+    ``scratch`` gives each clip's codec scratch bytes (the runtime's own figure)."""
     count = len(entries)
     strings = bytearray()
     out = bytearray(struct.pack("<II", count, 8 + 48 * count))
-    for e, off in zip(entries, payload_offsets):
+    for e, off, need in zip(entries, payload_offsets, scratch):
         name_off = len(strings)
         strings += e.name.encode("utf-8") + b"\0"
         rate = np.float32(e.frame_rate)
@@ -94,7 +102,7 @@ def clip_section(entries: list[ClipEntry], section_index: dict[str, int],
         out += struct.pack(
             "<IIIIIIIffIII",
             name_off, e.skeleton, CODEC_IDS[e.codec], section_index[e.codec], off,
-            len(e.payload), e.frame_count, float(rate), float(duration), 0, 0, 0,
+            len(e.payload), e.frame_count, float(rate), float(duration), 0, need, 0,
         )
     return bytes(out + strings)
 
@@ -149,7 +157,7 @@ class AssetBuilder:
     def build(self) -> bytes:
         if not self.skeletons or not self.clips:
             raise ValueError("an asset needs at least one skeleton and one clip")
-        sections = [Section(b"SKEL", skeleton_section(s, cm)) for s, cm in self.skeletons]
+        sections = [Section(b"SKEL", skeleton_section(s, cm), SKEL_VERSION) for s, cm in self.skeletons]
         clip_index = len(sections)
         sections.append(Section(b"CLIP", b""))  # filled below, once codec sections are placed
         if self.meta:
@@ -166,7 +174,14 @@ class AssetBuilder:
         for codec, blob in blobs.items():
             codec_section[codec] = len(sections)
             sections.append(Section(CODEC_SECTION_KINDS[codec], bytes(blob), CODEC_SECTION_VERSIONS.get(codec, 1)))
-        sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets))
+        # Each clip record states the scratch its codec needs, computed by the runtime itself.
+        from .runtime import clip_scratch_size  # the runtime binding, imported only to build
+        skel_bytes = [sections[i].data for i in range(len(self.skeletons))]
+        scratch = [clip_scratch_size(CODEC_IDS[e.codec], bytes(blobs[e.codec]), off, len(e.payload),
+                                     skel_bytes[e.skeleton], e.frame_count, float(np.float32(e.frame_rate)))
+                   for e, off in zip(self.clips, payload_offsets)]
+        sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets, scratch),
+                                       CLIP_VERSION)
         if self.contacts:
             sections.append(Section(b"CNTC", self.contacts))
         return build_asset(sections)

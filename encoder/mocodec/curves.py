@@ -11,10 +11,12 @@ from typing import Callable
 import numpy as np
 
 
-def catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray) -> np.ndarray:
+def catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray, split: bool = False) -> np.ndarray:
     """Evaluate the curve through ``(key_frames[k], key_values[k])`` at positions ``x``.
 
     ``key_frames`` is strictly increasing (K,), ``key_values`` is (K, d); returns (len(x), d).
+    ``split``: the first segment is detached (the straight line from key 0 to key 1, and key
+    0 is no neighbour of key 1), for captures that jump after frame 0.
     """
     key_frames = np.asarray(key_frames, dtype=np.float64)
     key_values = np.asarray(key_values, dtype=np.float64)
@@ -26,6 +28,9 @@ def catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray) -
     i0 = np.maximum(i1 - 1, 0)
     i2 = i1 + 1
     i3 = np.minimum(i1 + 2, k - 1)
+    if split:
+        i0 = np.where(i1 <= 1, i1, i0)
+        i3 = np.where(i1 == 0, i2, i3)
     t0, t1, t2, t3 = key_frames[i0], key_frames[i1], key_frames[i2], key_frames[i3]
     p0, p1, p2, p3 = key_values[i0], key_values[i1], key_values[i2], key_values[i3]
     h = t2 - t1
@@ -49,6 +54,7 @@ def fit_keys(
     dequantize: Callable[[np.ndarray], np.ndarray],
     start: np.ndarray | None = None,
     grid: int = 1,
+    split: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Place keys until the curve's error is within ``budget`` on every frame (seed 003 §5.1).
 
@@ -64,9 +70,14 @@ def fit_keys(
     error : maps a reconstruction (F, d) to the error per frame (F,).
     mandatory : sorted frames that are always keys (must include 0 and F - 1).
     dequantize : maps original key values (K, d) to what the decoder will see.
-    grid : new keys go on multiples of ``grid`` where a failing interval has one (coarser key
-        times cost fewer bits): the grid frame with the worst error/budget ratio; elsewhere on
-        the worst failing frame.
+    split : the curve's first segment is detached (:func:`catmull_rom`).
+    grid : key cells of ``grid`` frames (frames 1 ... F - 1 in cells from frame 1; frame 0 is
+        a cell of its own): a key costs a bit of the ``RMAL`` mask in a free cell and a whole
+        list entry in a cell that already holds one. A new key goes on the first frame of a
+        free cell where a failing interval has one (the cell start with the worst
+        error/budget ratio), else on its worst failing frame in a free cell, and only where
+        an interval has no free cell left on its worst failing frame. With ``grid == 1``
+        every frame is a cell.
 
     Returns
     -------
@@ -80,24 +91,34 @@ def fit_keys(
     keys = np.asarray(mandatory, dtype=np.int64)
     if start is not None:
         keys = np.union1d(keys, start)
-    is_key = np.zeros(frames, dtype=bool)
-    on_grid = np.arange(frames) % grid == 0
+    # Cell of every frame, shifted by one so frame 0 has cell 0 to itself.
+    cell = np.zeros(frames, dtype=np.int64)
+    cell[1:] = (np.arange(1, frames) - 1) // grid + 1
+    on_grid = np.zeros(frames, dtype=bool)
+    on_grid[1:] = (np.arange(1, frames) - 1) % grid == 0
+    taken = np.zeros(int(cell[-1]) + 1, dtype=bool)
     while True:
-        recon = catmull_rom(keys, dequantize(values[keys]), x)
+        recon = catmull_rom(keys, dequantize(values[keys]), x, split)
         ratio = error(recon) / budget
         bad = ratio > 1.0
         if not bad.any():
-            keys = _remove_keys(values, budget, error, keys, mandatory, dequantize, x)
+            keys = _remove_keys(values, budget, error, keys, mandatory, dequantize, x, split)
             return keys, values[keys], True
-        is_key[:] = False
-        is_key[keys] = True
-        candidates = bad & ~is_key
+        taken[:] = False
+        taken[cell[keys]] = True
+        free = ~taken[cell]
+        candidates = bad & free
         if grid > 1:
-            # Grid frames of the failing intervals, failing or not; an interval with no grid
-            # frame left keeps its failing frames as candidates.
+            # Free cell starts of the failing intervals, failing or not; an interval with none
+            # keeps its failing frames in free cells as candidates, and one with no free cell
+            # at all its failing frames (a second key in a cell).
             span = np.searchsorted(keys, np.arange(frames), side="right") - 1
-            gridded = on_grid & ~is_key & np.isin(span, span[bad])
+            gridded = on_grid & free & np.isin(span, span[bad])
             candidates = gridded | (candidates & ~np.isin(span, span[gridded]))
+            is_key = np.zeros(frames, dtype=bool)
+            is_key[keys] = True
+            stuck = bad & ~is_key & ~np.isin(span, span[candidates])
+            candidates |= stuck
         if not candidates.any():
             return keys, values[keys], False
         # Worst candidate of each failing interval: sort by (interval, -ratio), keep firsts.
@@ -107,11 +128,13 @@ def fit_keys(
         first = np.ones(len(order), dtype=bool)
         first[1:] = interval[order][1:] != interval[order][:-1]
         new = idx[order][first]
-        keys = np.union1d(keys, new)
+        # Two intervals may pick frames of one cell (a cell straddling a key): keep one.
+        _, one = np.unique(cell[new], return_index=True)
+        keys = np.union1d(keys, new[one])
 
 
 
-def _remove_keys(values, budget, error, keys, mandatory, dequantize, x) -> np.ndarray:
+def _remove_keys(values, budget, error, keys, mandatory, dequantize, x, split=False) -> np.ndarray:
     """Drop keys the curve can do without (greedy insertion over-places some).
 
     Removing key i changes the curve only between keys i-2 and i+2, so keys whose indices
@@ -129,7 +152,7 @@ def _remove_keys(values, budget, error, keys, mandatory, dequantize, x) -> np.nd
             if not trial.any():
                 continue
             kept = keys[~trial]
-            recon = catmull_rom(kept, dequantize(values[kept]), x)
+            recon = catmull_rom(kept, dequantize(values[kept]), x, split)
             bad = error(recon) > budget
             # A removal is fine when no frame between keys i-2 and i+2 (of the original set) fails.
             lo = keys[np.maximum(idx - 2, 0)]

@@ -38,6 +38,12 @@ class Skeleton:
     channels : list of tuple of int
         Per node, BVH channel codes in file order (see :data:`CHANNEL_NAMES`).
     is_end_site : (N,) bool array
+    rest_rotations : (N, 4) float array, default identity
+        Rest (bind) rotation of each node, ``x y z w`` (glTF rest TRS; identity for BVH).
+    rest_scales : (N, 3) float array, default ones
+    is_virtual : (N,) bool array, default all False
+        Points the reader added at leaf joints (glTF has no end sites) so the error metric
+        sees the leaf's rotation; they are not written back to the source format.
     """
 
     names: list[str]
@@ -45,12 +51,25 @@ class Skeleton:
     offsets: np.ndarray
     channels: list[tuple[int, ...]]
     is_end_site: np.ndarray
+    rest_rotations: np.ndarray | None = None
+    rest_scales: np.ndarray | None = None
+    is_virtual: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.parents = np.asarray(self.parents, dtype=np.int64)
         self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
         self.is_end_site = np.asarray(self.is_end_site, dtype=bool)
         self.channels = [tuple(int(c) for c in ch) for ch in self.channels]
+        n = len(self.names)
+        if self.rest_rotations is None:
+            self.rest_rotations = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+        self.rest_rotations = np.asarray(self.rest_rotations, dtype=np.float64).reshape(-1, 4)
+        if self.rest_scales is None:
+            self.rest_scales = np.ones((n, 3))
+        self.rest_scales = np.asarray(self.rest_scales, dtype=np.float64).reshape(-1, 3)
+        if self.is_virtual is None:
+            self.is_virtual = np.zeros(n, dtype=bool)
+        self.is_virtual = np.asarray(self.is_virtual, dtype=bool)
 
     @property
     def node_count(self) -> int:
@@ -127,7 +146,10 @@ class Skeleton:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Skeleton):
             return NotImplemented
-        return self.same_layout(other) and np.array_equal(self.offsets, other.offsets)
+        return (self.same_layout(other) and np.array_equal(self.offsets, other.offsets)
+                and np.array_equal(self.rest_rotations, other.rest_rotations)
+                and np.array_equal(self.rest_scales, other.rest_scales)
+                and np.array_equal(self.is_virtual, other.is_virtual))
 
 
 @dataclass

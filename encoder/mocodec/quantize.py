@@ -61,12 +61,14 @@ class Quantizer:
 
 @dataclass
 class StepQuantizer:
-    """``v = q * step`` per component, ``|q| <= 2**24`` (codec ``rma``: the entropy coder
-    makes the range free, so no minimum or bit count is stored, only the step)."""
+    """``v = q * step`` per component, ``|q| < 2**30`` (codec ``rma``: values are stored as
+    residuals or whole at the track's own width, so no minimum or bit count is kept, only the
+    step). The runtime computes ``(float)((double)q * step)``: exact for long clips whose
+    root travels far, where ``q`` passes 2**24."""
 
     step: np.ndarray  # (d,) float32-exact, > 0
 
-    MAX_Q = 1 << 24
+    MAX_Q = (1 << 30) - 1
 
     @classmethod
     def for_range(cls, lo: np.ndarray, hi: np.ndarray, step: np.ndarray) -> "StepQuantizer":
@@ -75,7 +77,7 @@ class StepQuantizer:
         st = np.asarray(step, dtype=np.float32).astype(np.float64)
         reach = np.maximum(np.abs(np.asarray(lo, dtype=np.float64)), np.abs(np.asarray(hi, dtype=np.float64)))
         if np.any(st <= 0) or np.any(reach / st >= cls.MAX_Q) or np.any(reach >= 1e7):
-            raise ValueError(f"range {reach.max():.6g} needs more than 2**24 steps of {st.min():.3g}")
+            raise ValueError(f"range {reach.max():.6g} needs more than 2**30 steps of {st.min():.3g}")
         return cls(st)
 
     def encode(self, v: np.ndarray) -> np.ndarray:
@@ -83,8 +85,8 @@ class StepQuantizer:
         return np.rint(np.asarray(v, dtype=np.float64) / self.step).astype(np.int64)
 
     def decode(self, q: np.ndarray) -> np.ndarray:
-        """Values the runtime reconstructs (binary32 product, as the C code does)."""
-        return (np.asarray(q).astype(np.float32) * self.step.astype(np.float32)).astype(np.float64)
+        """Values the runtime reconstructs (the binary64 product rounded to binary32)."""
+        return (np.asarray(q, dtype=np.float64) * self.step).astype(np.float32).astype(np.float64)
 
     def roundtrip(self, v: np.ndarray) -> np.ndarray:
         return self.decode(self.encode(v))

@@ -17,6 +17,7 @@ RuntimeResultError = _rt.RuntimeResultError
 Result = _rt.Result
 validate = _rt.validate
 version = _rt.version
+clip_scratch_size = _rt.clip_scratch_size
 
 
 def decode_world(asset: "Asset", clip: int | str) -> tuple[np.ndarray, np.ndarray]:

@@ -9,15 +9,19 @@
  * Typical use:
  *
  *     mcd_asset asset;
- *     if (mcd_open(bytes, size, 0, NULL, 0, &asset) != MCD_OK) ...;   // validates first
+ *     if (mcd_open(bytes, size, 0, &asset) != MCD_OK) ...;   // validates, decodes nothing
  *     size_t n = mcd_scratch_size(&asset);
- *     void* scratch = aligned_alloc(16, n);     // once per thread, not per frame; 16-aligned
+ *     void* scratch = aligned_alloc(16, n);      // one per playing instance; 16-aligned
  *     mcd_scratch_init(&asset, scratch, n);
  *     mcd_transform pose[64];
  *     mcd_sample(&asset, clip, t, MCD_SAMPLE_LOOP, pose, 64, scratch);
  *
+ * Memory: the runtime samples the asset's own bytes in place. What an engine holds is the
+ * asset plus one scratch buffer per playing instance (a few KB; it caches the decoder state
+ * that makes sequential playback O(1) per frame). Opening decodes nothing.
+ *
  * Thread safety: an opened mcd_asset is read-only and may be shared by any number of
- * threads; each thread needs its own scratch buffer.
+ * threads; a scratch buffer is used by one thread at a time.
  */
 #ifndef MOCODEC_H
 #define MOCODEC_H
@@ -39,12 +43,13 @@ extern "C" {
 
 /* Library version: major << 16 | minor << 8 | patch. */
 #define MCD_VERSION_MAJOR 0
-#define MCD_VERSION_MINOR 1
+#define MCD_VERSION_MINOR 2
 #define MCD_VERSION_PATCH 0
 #define MCD_VERSION ((MCD_VERSION_MAJOR << 16) | (MCD_VERSION_MINOR << 8) | MCD_VERSION_PATCH)
 
-/* Asset format version this runtime reads (docs/FORMAT.md). */
-#define MCD_FORMAT_MAJOR 1
+/* Asset format version this runtime reads (docs/FORMAT.md). Format 1 assets (mocodec 0.1,
+ * decoded into resident memory at open) are refused with MCD_ERROR_VERSION_TOO_OLD. */
+#define MCD_FORMAT_MAJOR 2
 #define MCD_FORMAT_MINOR 0
 
 /* Result codes. The values never change: the Python, C# and Godot bindings copy them. */
@@ -67,6 +72,10 @@ typedef enum mcd_result {
 
 /* mcd_validate / mcd_open flags. */
 #define MCD_VALIDATE_SKIP_CHECKSUM 0x1u /* structural checks only (still safe to sample) */
+/* mcd_open only: the bytes passed mcd_validate before (at import or cook time), so open reads
+ * just the header, section table, skeletons and clip directory: O(clips + sections), no
+ * payload byte touched. Sampling bytes that did not pass mcd_validate is then undefined. */
+#define MCD_OPEN_PREVALIDATED 0x2u
 
 /* mcd_sample flags. All zero: local transforms, clamp to the clip, cubic between frames. */
 #define MCD_SAMPLE_WORLD 0x1u   /* output model-space transforms instead of local ones */
@@ -97,10 +106,12 @@ typedef enum mcd_channel {
     MCD_CHANNEL_ZROTATION = 5
 } mcd_channel;
 
-/* One node's transform. Quaternion x y z w (unit), translation in the file's units. */
+/* One node's transform. Quaternion x y z w (unit), translation in the file's units, scale
+ * (1 1 1 where the source has none). Applied as scale, then rotation, then translation. */
 typedef struct mcd_transform {
     float rotation[4];
     float translation[3];
+    float scale[3];
 } mcd_transform;
 
 typedef struct mcd_clip_info {
@@ -111,6 +122,12 @@ typedef struct mcd_clip_info {
     float frame_rate;      /* frames per second */
     float duration;        /* seconds, (frame_count - 1) / frame_rate */
     uint32_t node_count;   /* transforms one sample writes */
+    uint32_t scratch_size; /* scratch bytes sampling this clip needs (mcd_scratch_size covers all) */
+    /* The byte range [data_offset, data_offset + data_size) of the asset that sampling this
+     * clip reads besides the header, section table, SKEL and CLIP sections (and the CNTC
+     * section with MCD_SAMPLE_CONTACTS): a game may page or stream clips by these ranges. */
+    uint32_t data_offset;
+    uint32_t data_size;
 } mcd_clip_info;
 
 typedef struct mcd_skeleton_info {
@@ -118,13 +135,21 @@ typedef struct mcd_skeleton_info {
     float cm_per_unit;     /* centimetres per file unit */
 } mcd_skeleton_info;
 
+/* Node kinds (mcd_node_info.kind). */
+#define MCD_NODE_JOINT 0u
+#define MCD_NODE_END_SITE 1u /* a BVH End Site: no channels, no children */
+#define MCD_NODE_VIRTUAL 2u  /* a point the encoder added at a leaf joint (glTF has no end sites) so
+                                the error metric sees the leaf's rotation; not in the source file */
+
 typedef struct mcd_node_info {
-    const char* name;        /* NUL-terminated, points into the asset bytes */
-    int32_t parent;          /* -1 for a root */
-    uint32_t is_end_site;    /* 1 for a BVH End Site, else 0 */
-    float rest_offset[3];    /* BVH OFFSET */
-    uint32_t channel_count;  /* 0 ... 6 */
-    uint8_t channels[6];     /* mcd_channel codes in file order */
+    const char* name;         /* NUL-terminated, points into the asset bytes */
+    int32_t parent;           /* -1 for a root */
+    uint32_t kind;            /* MCD_NODE_JOINT, MCD_NODE_END_SITE or MCD_NODE_VIRTUAL */
+    float rest_translation[3];/* BVH OFFSET, glTF rest translation */
+    float rest_rotation[4];   /* x y z w; identity for BVH */
+    float rest_scale[3];      /* 1 1 1 for BVH */
+    uint32_t channel_count;   /* BVH channels, 0 ... 6 (0 for glTF) */
+    uint8_t channels[6];      /* mcd_channel codes in file order */
     uint8_t reserved[2];
 } mcd_node_info;
 
@@ -142,13 +167,12 @@ typedef struct mcd_asset {
     uint32_t clip_strings_size;
     uint32_t max_nodes;         /* largest node_count of any skeleton */
     uint32_t scratch_size;      /* bytes mcd_scratch_size returns */
+    uint32_t contacts;          /* offset of the CNTC section, 0 when there is none */
+    uint32_t contacts_size;
+    uint32_t contacts_scratch;  /* bytes of the contact pass's scratch area (0 without CNTC) */
     uint32_t skeleton_offsets[16]; /* offsets of the first 16 SKEL sections */
     uint32_t section_table;     /* offset of the section table */
     uint32_t section_count;
-    uint8_t* resident;          /* the caller's resident memory, or NULL */
-    size_t resident_size;
-    uint32_t resident_offsets[8]; /* per codec id: offset of its section's resident block, or UINT32_MAX */
-    uint32_t codec_sections[8];   /* per codec id: its section's index + 1, or 0 */
 } mcd_asset;
 
 /* Runtime library version (MCD_VERSION of the build). Bindings check it at load time. */
@@ -160,30 +184,21 @@ MCD_API const char* mcd_result_string(mcd_result result);
 /*
  * Check that `data[0 .. size)` is a complete, well-formed asset this runtime can sample:
  * header, checksum (unless MCD_VALIDATE_SKIP_CHECKSUM), section table, skeletons, clip
- * directory and every codec payload. Safe on any bytes: never reads outside the buffer,
- * never crashes. After it returns MCD_OK, sampling cannot read out of bounds and never
- * produces a non-finite float. Cost: linear in the asset size.
+ * directory and every byte of every codec payload (entropy streams included). Safe on any
+ * bytes: never reads outside the buffer, never crashes. After it returns MCD_OK, sampling
+ * cannot fail, cannot read out of bounds and never produces a non-finite float. Cost: linear
+ * in the asset size. Thread-safe.
  */
 MCD_API mcd_result mcd_validate(const void* data, size_t size, uint32_t flags);
 
 /*
- * Bytes of resident memory mcd_open needs for this asset: what codecs with entropy-coded
- * sections decode into once at open (0 when every clip is sampled in place, as with the
- * spline codec). Validates first (see mcd_validate; `flags` as there) and fails like it.
+ * Open the asset for sampling: fills `out_asset` with offsets into the caller's bytes, which
+ * must stay alive and unchanged while it is used. Validates first (see mcd_validate; `flags`
+ * as there) unless MCD_OPEN_PREVALIDATED says the bytes passed mcd_validate already; then only
+ * the container is read (header, section table, skeletons, clip directory). Decodes nothing
+ * and does not allocate.
  */
-MCD_API mcd_result mcd_resident_size(const void* data, size_t size, uint32_t flags,
-                                     size_t* out_size);
-
-/*
- * Validate (see mcd_validate; `flags` as there), decode what must be resident into
- * `resident` (at least mcd_resident_size bytes, 16-byte aligned; may be NULL when that size
- * is 0), check the decoded data, and open the asset. The bytes and the resident memory must
- * stay alive and unchanged while the asset is used. Does not allocate. Fails with
- * MCD_ERROR_BUFFER_TOO_SMALL when resident_size is too small, and MCD_ERROR_MALFORMED when
- * decoded data breaks the format even though mcd_validate accepted the raw bytes.
- */
-MCD_API mcd_result mcd_open(const void* data, size_t size, uint32_t flags, void* resident,
-                            size_t resident_size, mcd_asset* out_asset);
+MCD_API mcd_result mcd_open(const void* data, size_t size, uint32_t flags, mcd_asset* out_asset);
 
 MCD_API uint32_t mcd_clip_count(const mcd_asset* asset);
 MCD_API uint32_t mcd_skeleton_count(const mcd_asset* asset);
@@ -196,10 +211,15 @@ MCD_API mcd_result mcd_get_node_info(const mcd_asset* asset, uint32_t skeleton, 
                                  mcd_node_info* out);
 
 /*
- * Scratch memory one thread needs to sample any clip of the asset (a few KB): caches that
- * make sequential playback cost O(1) per frame. Initialise it once with mcd_scratch_init;
- * it may then be reused for any clip and time. The size is a multiple of 16.
+ * Scratch memory that samples any clip of the asset (a few KB; the largest clip's need, see
+ * mcd_clip_info.scratch_size for one clip): it caches the decoder state of the clip it last
+ * sampled, so give each playing instance its own to make sequential playback O(1) per frame.
+ * One scratch shared by several instances or clips works too, but every switch of clip costs
+ * a re-preparation (a random access). Initialise it once with mcd_scratch_init (16-byte
+ * aligned, at least MCD_SCRATCH_MIN_SIZE bytes); it may then be used for any clip whose need
+ * it covers. The size is a multiple of 16.
  */
+#define MCD_SCRATCH_MIN_SIZE 64u
 MCD_API size_t mcd_scratch_size(const mcd_asset* asset);
 MCD_API mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratch_size);
 
@@ -210,8 +230,9 @@ MCD_API mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_
  * the codec's curve is evaluated unless MCD_SAMPLE_NEAREST. Does not allocate; every output
  * float is finite. Fails with MCD_ERROR_INVALID_ARGUMENT on a non-finite time or unknown
  * flags, MCD_ERROR_OUT_OF_RANGE on a bad clip index, MCD_ERROR_BUFFER_TOO_SMALL when
- * pose_capacity < node_count, MCD_ERROR_SCRATCH_MISMATCH when the scratch was initialised
- * for another asset.
+ * pose_capacity < node_count or the scratch is smaller than the clip needs,
+ * MCD_ERROR_SCRATCH_MISMATCH when the scratch was initialised for another asset. Sampling
+ * the same time twice gives the same pose, whatever was sampled in between.
  */
 MCD_API mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
                               uint32_t flags, mcd_transform* out_pose, uint32_t pose_capacity,

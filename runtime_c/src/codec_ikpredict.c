@@ -45,27 +45,25 @@ typedef struct layout {
     float k, eff_step, trans_step;
     const uint8_t *node_table, *chain_len, *chain_nodes, *gaps, *block_table, *streams;
     size_t head_size, size;
-    const uint8_t* skel; /* skeleton records: parent at +16 + 32 i, rest offset at +24 + 32 i */
+    const uint8_t* skel; /* the clip's SKEL section */
 } layout;
-
-static size_t align4z(size_t x) {
-    return (x + 3u) & ~(size_t)3u;
-}
-
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
-}
 
 static const uint8_t* node_rec(const layout* L, uint32_t i) {
     return L->node_table + (size_t)NODE_RECORD * i;
 }
 
 static int32_t parent_of(const layout* L, uint32_t i) {
-    return mcd_rd_i32(L->skel + 16u + (size_t)i * MCD_SKEL_NODE_SIZE);
+    return mcd_skel_parent(L->skel, i);
 }
 
 static double rest_offset(const layout* L, uint32_t i, uint32_t k) {
-    return (double)mcd_rd_f32(L->skel + 24u + (size_t)i * MCD_SKEL_NODE_SIZE + 4u * k);
+    return (double)mcd_rd_f32(mcd_skel_record(L->skel, i) + 8u + 4u * k);
+}
+
+/* A node's rest rotation (identity for BVH skeletons), binary64 x y z w. */
+static void rest_rotation(const layout* L, uint32_t i, double q[4]) {
+    uint32_t k;
+    for (k = 0; k < 4u; ++k) q[k] = (double)mcd_rd_f32(mcd_skel_record(L->skel, i) + 20u + 4u * k);
 }
 
 static uint32_t chain_length(const layout* L, uint32_t c) {
@@ -106,7 +104,7 @@ static int read_head(const uint8_t* p, size_t avail, layout* L) {
     off += 2u * (size_t)L->chain_total;
     L->gaps = p + off;
     if (L->coded < L->frames) off += L->coded - 1u; /* u8 frames to the next coded frame */
-    off = align4z(off);
+    off = mcd_align4(off);
     if (off > avail) return 0;
     L->head_size = off;
     return 1;
@@ -120,7 +118,7 @@ static int read_layout(const uint8_t* p, size_t avail, layout* L) {
     L->block_table = p + off;
     off += (size_t)BLOCK_ENTRY * L->blocks;
     L->streams = p + off;
-    off = align4z(off + (size_t)L->stream_bytes);
+    off = mcd_align4(off + (size_t)L->stream_bytes);
     if (off > avail) return 0;
     L->size = off;
     return 1;
@@ -289,7 +287,7 @@ static size_t work_layout(const layout* L, size_t part[12]) {
     part[9] = 8u * C3 * C3 + 8u * C3;
     part[10] = 8u * 2u * L->joints + 8u * 4u * L->nodes;
     part[11] = 2u * sizeof(mcd_transform) * (size_t)L->nodes;
-    for (i = 0; i < 12u; ++i) total += align16z(part[i]);
+    for (i = 0; i < 12u; ++i) total += mcd_align16(part[i]);
     return total;
 }
 
@@ -300,7 +298,7 @@ static void ctx_bind(ctx* c, uint8_t* work) {
     work_layout(&c->L, part);
     for (i = 0; i < 12u; ++i) {
         p[i] = work + at;
-        at += align16z(part[i]);
+        at += mcd_align16(part[i]);
     }
     c->st = (state*)p[0];
     c->joint_slot = (int32_t*)p[1];
@@ -424,12 +422,13 @@ static void frame_world(const ctx* c, const double* v) {
         double* w = c->world + 4u * (size_t)i;
         if (rec[0] == ROT_CODED) {
             joint_world(rec, v + 3u * (size_t)c->joint_slot[i], w);
-        } else if (rec[0] == ROT_CONSTANT) {
-            double q[4];
-            for (k = 0; k < 4u; ++k) q[k] = (double)mcd_rd_f32(rec + 8 + 4 * k);
-            qmul(pw, q, w);
         } else {
-            memcpy(w, pw, 4u * sizeof(double));
+            double q[4];
+            if (rec[0] == ROT_CONSTANT)
+                for (k = 0; k < 4u; ++k) q[k] = (double)mcd_rd_f32(rec + 8 + 4 * k);
+            else
+                rest_rotation(&c->L, i, q);
+            qmul(pw, q, w);
         }
     }
 }
@@ -466,11 +465,11 @@ static void frame_local(const ctx* c, const double* v, mcd_transform* out) {
         } else if (rec[0] == ROT_CONSTANT) {
             for (k = 0; k < 4u; ++k) out[i].rotation[k] = mcd_rd_f32(rec + 8 + 4 * k);
         } else {
-            out[i].rotation[0] = out[i].rotation[1] = out[i].rotation[2] = 0.0f;
-            out[i].rotation[3] = 1.0f;
+            for (k = 0; k < 4u; ++k) out[i].rotation[k] = mcd_rd_f32(mcd_skel_record(c->L.skel, i) + 20u + 4u * k);
         }
         local_translation(c, v, i, t);
         for (k = 0; k < 3u; ++k) out[i].translation[k] = (float)t[k];
+        for (k = 0; k < 3u; ++k) out[i].scale[k] = mcd_rd_f32(mcd_skel_record(c->L.skel, i) + 36u + 4u * k);
     }
 }
 
@@ -677,9 +676,19 @@ static int read_view(const mcd_clip_view* v, layout* L) {
 
 static mcd_result ikp_validate(const mcd_clip_view* v) {
     layout L;
+    uint32_t b, k;
     if (!read_view(v, &L) || L.size != v->payload_size) return MCD_ERROR_MALFORMED;
     if (L.frames != v->frame_count || L.nodes != v->node_count) return MCD_ERROR_MALFORMED;
     if (!check_head(&L, v->payload) || !check_blocks(&L, v->payload)) return MCD_ERROR_MALFORMED;
+    /* Streams are decoded lazily, a block at a time, when a sample needs it: check every one
+     * here, so that sampling a validated asset cannot fail. */
+    for (b = 0; b < L.blocks; ++b) {
+        block_streams s;
+        block_info(&L, b, &s);
+        for (k = 0; k < 3u; ++k)
+            if (s.values[k] && mcd_entropy_check(s.at[k], s.bytes[k], 3u, s.values[k]) != MCD_OK)
+                return MCD_ERROR_MALFORMED;
+    }
     return MCD_OK;
 }
 
@@ -758,31 +767,30 @@ static const mcd_transform* pose_of(ctx* c, uint32_t g, uint32_t keep) {
     return c->poses + (size_t)s * c->L.nodes;
 }
 
-static mcd_result ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                             void* scratch, int fresh) {
+static void ikp_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                       int fresh) {
     ctx c;
-    uint32_t i0, i1;
+    uint32_t i0, i1, i;
     float t;
-    mcd_result r;
     (void)flags;
-    if (!read_view(v, &c.L)) return MCD_ERROR_MALFORMED;
+    read_view(v, &c.L); /* validated: cannot fail */
     ctx_bind(&c, (uint8_t*)scratch);
     if (fresh) ctx_reset(&c);
     locate(&c.L, x, &i0, &t);
     i1 = i0 + 1u < c.L.coded ? i0 + 1u : i0;
     if (!(t > 0.0f)) i1 = i0; /* on a coded frame: that frame alone, bit for bit */
-    if (cached_pose(&c, i0) < 0 || cached_pose(&c, i1) < 0) {
-        r = seek(&c, i0, i1);
-        if (r != MCD_OK) return r;
+    if ((cached_pose(&c, i0) < 0 || cached_pose(&c, i1) < 0) && seek(&c, i0, i1) != MCD_OK) {
+        /* Only bytes that did not pass mcd_validate get here (MCD_OPEN_PREVALIDATED misused):
+         * the rest pose, finite. */
+        for (i = 0; i < c.L.nodes; ++i) mcd_skel_rest(v->skeleton, i, &out[i]);
+        return;
     }
     memcpy(out, pose_of(&c, i0, i1), sizeof(mcd_transform) * c.L.nodes);
     if (i1 != i0) blend(out, pose_of(&c, i1, i0), c.L.nodes, t);
-    return MCD_OK;
 }
 
 const mcd_codec_ops mcd_codec_ikpredict_ops = {
-    MCD_CODEC_IK_PREDICT, 0x52504B49u /* "IKPR" */, ikp_validate, NULL, NULL, ikp_scratch_size,
-    ikp_sample};
+    MCD_CODEC_IK_PREDICT, 0x52504B49u /* "IKPR" */, 1u, NULL, ikp_validate, ikp_scratch_size, ikp_sample};
 
 /* ---------------------------------------------------------------- encoder support */
 static int encoder_layout(const uint8_t* head, size_t head_size, const uint8_t* skeleton,

@@ -39,13 +39,6 @@ typedef struct window {
     const uint8_t *steps, *freqs, *stream;
 } window;
 
-static size_t align4z(size_t x) {
-    return (x + 3u) & ~(size_t)3u;
-}
-
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
-}
 
 /* Bytes before the first window block; only meaningful for counts within the format's limits. */
 static size_t head_bytes(uint32_t nodes, uint32_t m, uint32_t refs, uint32_t windows) {
@@ -59,7 +52,7 @@ static uint32_t weight_count(uint32_t d, uint32_t h, uint32_t m) {
 /* Bytes of a window block with these counts (counts within the format's limits). */
 static size_t block_bytes(uint32_t k, uint32_t h, uint32_t m, uint32_t bits) {
     uint64_t stream_bits = (uint64_t)weight_count(2u * k + 1u, h, m) * bits;
-    return WINDOW_HEADER + align4z(2u * (size_t)k) + align4z((size_t)((stream_bits + 7u) / 8u));
+    return WINDOW_HEADER + mcd_align4(2u * (size_t)k) + mcd_align4((size_t)((stream_bits + 7u) / 8u));
 }
 
 static void read_layout(const uint8_t* p, layout* L) {
@@ -88,7 +81,7 @@ static void read_window(const uint8_t* payload, const layout* L, uint32_t i, win
     w->weights = weight_count(w->d, w->h, L->m);
     w->steps = b + 8;
     w->freqs = b + WINDOW_HEADER;
-    w->stream = w->freqs + align4z(2u * (size_t)w->k);
+    w->stream = w->freqs + mcd_align4(2u * (size_t)w->k);
 }
 
 static int bounded(float v, float limit) {
@@ -204,7 +197,7 @@ static size_t neural_scratch_size(const mcd_clip_view* v) {
         if (w.d > d) d = w.d;
         if (w.h > h) h = w.h;
     }
-    return align16z(16u + 4u * ((size_t)weights + d + 2u * (size_t)h + L.m));
+    return mcd_align16(16u + 4u * ((size_t)weights + d + 2u * (size_t)h + L.m));
 }
 
 /* The window that samples frame position x: the last one starting at or before x (a shared
@@ -287,8 +280,8 @@ static mcd_quat ref_quat(const layout* L, uint32_t index) {
     return r;
 }
 
-static mcd_result neural_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                                void* scratch, int fresh) {
+static void neural_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                          int fresh) {
     layout L;
     window W;
     uint32_t* held = (uint32_t*)scratch;
@@ -354,11 +347,10 @@ static mcd_result neural_sample(const mcd_clip_view* v, float x, uint32_t flags,
 
     for (i = 0; i < L.nodes; ++i) {
         const uint8_t* e = L.node_table + (size_t)i * NODE_ENTRY;
-        const uint8_t* rec = v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
         const float* o = y + mcd_rd_u16(e + 2);
         mcd_quat q;
-        q.x = q.y = q.z = 0.0f;
-        q.w = 1.0f;
+        mcd_skel_rest(v->skeleton, i, &out[i]);
+        q = mcd_quat_of(&out[i]);
         if (e[0] == ROT_CONSTANT) {
             q = ref_quat(&L, mcd_rd_u16(e + 6));
         } else if (e[0] == ROT_QUATERNION) {
@@ -389,15 +381,9 @@ static mcd_result neural_sample(const mcd_clip_view* v, float x, uint32_t flags,
             out[i].translation[0] = tr[0];
             out[i].translation[1] = tr[1];
             out[i].translation[2] = tr[2];
-        } else {
-            out[i].translation[0] = mcd_rd_f32(rec + 8);
-            out[i].translation[1] = mcd_rd_f32(rec + 12);
-            out[i].translation[2] = mcd_rd_f32(rec + 16);
         }
     }
-    return MCD_OK;
 }
 
 const mcd_codec_ops mcd_codec_neural_ops = {
-    MCD_CODEC_NEURAL, 0x5255454Eu /* "NEUR" */, neural_validate, NULL, NULL, neural_scratch_size,
-    neural_sample};
+    MCD_CODEC_NEURAL, 0x5255454Eu /* "NEUR" */, 2u, NULL, neural_validate, neural_scratch_size, neural_sample};

@@ -1,51 +1,29 @@
-/* Codec `rma`: per-track Catmull-Rom keys placed freely (no block grid), their times and values
- * entropy coded with the runtime's coder (docs/FORMAT.md, RMAL).
+/* Codec `rma`: per-track Catmull-Rom keys placed freely in time, sampled in place from the
+ * asset's bytes (docs/FORMAT.md, RMAL version 2).
  *
- * The section is decoded once, at mcd_open, into resident memory: per clip the key frames,
- * the dequantised key values and a seek table (the key at or before every 32nd frame). A
- * sample then reads floats only: random access finds each track's interval through the seek
- * table and a short scan; sequential playback keeps each track's interval in the scratch and
- * moves it forward a key at a time. */
+ * A track's key times are a bit mask over the cells of its key grid with a rank directory (a
+ * cell holding more than one key is listed, once per extra key, in a short sorted list); its
+ * key values come in groups of G keys: a fixed-size group entry
+ * (bit offset, residual widths, the first key whole) and fixed-width residuals from a
+ * prediction, outliers stored whole. Random access finds the key at or before x by rank and
+ * decodes the prefix of one or two groups; sequential playback keeps each track's four keys
+ * and a decoding cursor in the scratch and reads one key record per key interval. */
 #include <string.h>
 
-#include "entropy.h"
 #include "internal.h"
 
 #define SECTION_HEADER 16u
 #define PAYLOAD_HEADER 32u
-#define RESIDENT_SECTION_HEADER 16u
-#define CLIP_BLOCK_HEADER 16u
-#define TRACK_ENTRY 16u
-#define SEEK_SHIFT 5u
-#define MAX_Q 16777216 /* |q| <= 2^24: q x step is exact in binary32 */
+#define MAX_GROUP_SHIFT 6u
+#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
+#define DIR_SHIFT 8u        /* a rank directory entry every 256 cells (4 mask words) */
+#define WIDTH_BITS 5u
 
-enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3 };
-enum { PREDICT_PREVIOUS = 0, PREDICT_HALF_SLOPE = 1, PREDICT_SLOPE = 2 };
+enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
+enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
 
-static size_t align4z(size_t x) {
-    return (x + 3u) & ~(size_t)3u;
-}
-
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
-}
-
-/* Descriptor: u8 kind, u8 key grid | predictor << 4, then i16 reference[3] (rotations) or u16 0 (translation), u32
- * key_count, u32 value_bytes, f32 step (one for all components; a twist's MRPs), and for a
- * twist i16 axis[3], u16 0, f32 angle step. */
 static uint32_t desc_size(uint32_t kind) {
-    return kind == KIND_MRP ? 20u : kind == KIND_TWIST ? 32u : kind == KIND_TRANSLATION ? 16u : 0u;
-}
-
-/* Offsets within a descriptor. */
-static uint32_t desc_counts(uint32_t kind) {
-    return kind == KIND_TRANSLATION ? 4u : 8u;
-}
-
-static void desc_steps(const uint8_t* d, uint32_t kind, float step[4]) {
-    float s = mcd_rd_f32(d + desc_counts(kind) + 8u);
-    step[0] = step[1] = step[2] = step[3] = s;
-    if (kind == KIND_TWIST) step[0] = mcd_rd_f32(d + 28);
+    return kind == KIND_MRP ? 32u : kind == KIND_TWIST ? 44u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 24u : 0u;
 }
 
 static uint32_t kind_dims(uint32_t kind) {
@@ -53,458 +31,693 @@ static uint32_t kind_dims(uint32_t kind) {
 }
 
 /* ---------------------------------------------------------------- payload layout */
-typedef struct layout {
-    uint32_t size, frames, nodes, tracks, constants, keys, resident_offset, gap_bytes;
-    uint32_t values;   /* key values over all tracks (sum of key_count x dims) */
-    uint32_t interior; /* keys between each track's first and last: two gap-stream values each */
-    uint32_t seek_len; /* seek entries per track */
-    const uint8_t *modes, *consts, *descs, *gaps, *streams;
-} layout;
+typedef struct header {
+    uint32_t size, frames, nodes, tracks, constants, group_shift;
+    const uint8_t *modes, *consts, *descs;
+} header;
 
-static uint32_t seek_len(uint32_t frames) {
-    return ((frames - 1u) >> SEEK_SHIFT) + 1u;
-}
+/* Everything about one track that its descriptor and the clip's frame count give. Offsets
+ * are bytes from the start of the payload. */
+typedef struct track_layout {
+    uint8_t kind, dims, grid_shift, split, predictor, offset_bits, group_shift;
+    uint8_t abits[4];
+    uint32_t keys, cells, words, extras, extra_bits, groups, entry_bits, data_bytes;
+    float step[4];
+    uint32_t mask, dir, extra, table, data, end;
+} track_layout;
 
-/* Bytes of a clip's resident block (multiple of 16). */
-static size_t clip_resident_bytes(const layout* L) {
-    return CLIP_BLOCK_HEADER + (size_t)TRACK_ENTRY * L->tracks + align16z(4u * (size_t)L->keys) +
-           align16z(4u * (size_t)L->values) + align16z(4u * (size_t)L->tracks * L->seek_len);
-}
-
-/* Parse and check everything the raw bytes of one payload allow; `avail` bytes are readable
- * at p. Does not decode the entropy streams (mcd_open does). */
-static mcd_result parse_payload(const uint8_t* p, size_t avail, layout* L) {
-    uint32_t i, off, track, consts_used = 0;
-    uint64_t keys = 0, values = 0, streams = 0, interior = 0, end;
+static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
+    uint32_t i;
     if (avail < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
-    L->size = mcd_rd_u32(p);
-    L->frames = mcd_rd_u32(p + 4);
-    L->nodes = mcd_rd_u32(p + 8);
-    L->tracks = mcd_rd_u32(p + 12);
-    L->constants = mcd_rd_u32(p + 16);
-    L->keys = mcd_rd_u32(p + 20);
-    L->resident_offset = mcd_rd_u32(p + 24);
-    L->gap_bytes = mcd_rd_u32(p + 28);
-    if (L->size < PAYLOAD_HEADER || L->size > avail || (L->size & 3u)) return MCD_ERROR_MALFORMED;
-    if (L->frames == 0 || L->nodes == 0 || L->nodes > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (L->tracks > 2u * L->nodes || L->constants > 7u * L->nodes) return MCD_ERROR_MALFORMED;
-    if (L->resident_offset & 15u) return MCD_ERROR_MALFORMED;
-    if ((uint64_t)L->keys > (uint64_t)L->tracks * L->frames) return MCD_ERROR_MALFORMED;
-    L->modes = p + PAYLOAD_HEADER;
-    end = PAYLOAD_HEADER + align4z(L->nodes) + 4u * (uint64_t)L->constants;
-    if (end > L->size) return MCD_ERROR_MALFORMED;
-    L->consts = L->modes + align4z(L->nodes);
-    L->descs = p + end;
-    for (i = L->nodes; i < align4z(L->nodes); ++i)
-        if (L->modes[i]) return MCD_ERROR_MALFORMED;
-    for (i = 0; i < L->constants; ++i)
-        if (!mcd_in_bounds(mcd_rd_f32(L->consts + 4u * i))) return MCD_ERROR_MALFORMED;
-    /* Node modes: tracks and constants are taken in node order, rotation before translation. */
-    for (i = 0, track = 0, off = 0; i < L->nodes; ++i) {
-        uint32_t m = L->modes[i], rm = m & 3u, tm = (m >> 2) & 3u, pass;
-        if ((m >> 4) || rm == 3u || tm == 3u) return MCD_ERROR_MALFORMED;
-        for (pass = 0; pass < 2; ++pass) {
-            uint32_t mode = pass ? tm : rm, kind, size, dims, count, vbytes, c;
-            const uint8_t* d;
-            if (mode == 1u) {
-                if (!pass) {
-                    if (consts_used + 4u > L->constants || !mcd_unit_quat_at(L->consts + 4u * consts_used))
-                        return MCD_ERROR_MALFORMED;
-                    consts_used += 4u;
-                } else {
-                    if (consts_used + 3u > L->constants) return MCD_ERROR_MALFORMED;
-                    consts_used += 3u;
-                }
-                continue;
-            }
-            if (mode != 2u) continue;
-            if (track >= L->tracks || end + off + 4u > L->size) return MCD_ERROR_MALFORMED;
-            d = L->descs + off;
-            kind = d[0];
-            size = desc_size(kind);
-            if (size == 0 || end + off + size > L->size) return MCD_ERROR_MALFORMED;
-            if ((kind == KIND_TRANSLATION) != (pass == 1u)) return MCD_ERROR_MALFORMED;
-            /* Byte 1: key grid (1 ... 8) in the low nibble, value predictor (0 ... 2) above. */
-            if ((d[1] & 15u) < 1u || (d[1] & 15u) > 8u || (d[1] >> 4) > PREDICT_SLOPE) return MCD_ERROR_MALFORMED;
-            if (kind == KIND_TRANSLATION && mcd_rd_u16(d + 2)) return MCD_ERROR_MALFORMED;
-            dims = kind_dims(kind);
-            count = mcd_rd_u32(d + desc_counts(kind));
-            vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u);
-            if (count == 0 || count > L->frames || (L->frames > 1u && count < 2u)) return MCD_ERROR_MALFORMED;
-            {
-                float step[4];
-                desc_steps(d, kind, step);
-                for (c = 0; c < dims; ++c)
-                    /* The decoded values are bounded at open (q x step within the format's bound). */
-                    if (!mcd_in_bounds(step[c]) || step[c] < 0.0f) return MCD_ERROR_MALFORMED;
-            }
-            if (kind == KIND_TWIST) {
-                float ax = (float)(int16_t)mcd_rd_u16(d + 20), ay = (float)(int16_t)mcd_rd_u16(d + 22);
-                float az = (float)(int16_t)mcd_rd_u16(d + 24);
-                if (mcd_rd_u16(d + 26)) return MCD_ERROR_MALFORMED;
-                if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
-            }
-            keys += count;
-            interior += count - (count > 1u ? 2u : 1u);
-            values += (uint64_t)count * dims;
-            streams += vbytes;
-            off += size;
-            track++;
-        }
-    }
-    if (track != L->tracks || consts_used != L->constants || keys != L->keys) return MCD_ERROR_MALFORMED;
-    if (values > 0xFFFFFFFFu / 4u) return MCD_ERROR_MALFORMED;
-    L->values = (uint32_t)values;
-    L->interior = (uint32_t)interior; /* <= keys */
-    L->seek_len = seek_len(L->frames);
-    L->gaps = L->descs + off;
-    L->streams = L->gaps + L->gap_bytes;
-    end += (uint64_t)off + L->gap_bytes + streams;
-    /* The payload ends after its streams, padded with zeros to a multiple of 4. */
-    if (align4z((size_t)end) != L->size || end > L->size) return MCD_ERROR_MALFORMED;
-    for (i = (uint32_t)end; i < L->size; ++i)
-        if (p[i]) return MCD_ERROR_MALFORMED;
-    if ((uint64_t)clip_resident_bytes(L) > 0x7FFFFFFFu) return MCD_ERROR_MALFORMED;
+    H->size = mcd_rd_u32(p);
+    H->frames = mcd_rd_u32(p + 4);
+    H->nodes = mcd_rd_u32(p + 8);
+    H->tracks = mcd_rd_u32(p + 12);
+    H->constants = mcd_rd_u32(p + 16);
+    H->group_shift = p[20];
+    if (H->size < PAYLOAD_HEADER || H->size > avail || (H->size & 3u)) return MCD_ERROR_MALFORMED;
+    if (p[21] || p[22] || p[23] || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
+    if (H->frames == 0 || H->nodes == 0 || H->nodes > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
+    if (H->group_shift < 1 || H->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    if (H->tracks > 3u * H->nodes || H->constants > 10u * H->nodes) return MCD_ERROR_MALFORMED;
+    if ((uint64_t)PAYLOAD_HEADER + mcd_align4(H->nodes) + 4u * (uint64_t)H->constants > H->size) return MCD_ERROR_MALFORMED;
+    H->modes = p + PAYLOAD_HEADER;
+    H->consts = H->modes + mcd_align4(H->nodes);
+    H->descs = H->consts + 4u * (size_t)H->constants;
+    for (i = H->nodes; i < mcd_align4(H->nodes); ++i)
+        if (H->modes[i]) return MCD_ERROR_MALFORMED;
     return MCD_OK;
 }
 
-/* Walk the section's payloads (they follow the 16-byte section header back to back). Calls
- * nothing; returns the resident bytes they need, or 0 when the walk breaks a rule. */
-static size_t walk_resident(const uint8_t* section, uint32_t size) {
-    uint32_t count, i;
-    size_t pos = SECTION_HEADER, total = RESIDENT_SECTION_HEADER;
-    if (size < SECTION_HEADER) return 0;
-    count = mcd_rd_u32(section);
-    if (count == 0 || mcd_rd_u32(section + 4) || mcd_rd_u32(section + 8) || mcd_rd_u32(section + 12)) return 0;
-    for (i = 0; i < count; ++i) {
-        layout L;
-        if (parse_payload(section + pos, size - pos, &L) != MCD_OK) return 0;
-        if ((size_t)L.resident_offset != total - RESIDENT_SECTION_HEADER) return 0;
-        total += clip_resident_bytes(&L);
-        if (total > 0x7FFFFFFFu) return 0;
-        pos += L.size;
-    }
-    return pos == size ? total : 0;
-}
-
-static mcd_result rma_validate(const mcd_clip_view* v) {
-    layout L;
-    mcd_result r;
-    if ((size_t)(v->payload - v->section) < SECTION_HEADER) return MCD_ERROR_MALFORMED;
-    r = parse_payload(v->payload, v->payload_size, &L);
-    if (r != MCD_OK) return r;
-    if (L.size != v->payload_size || L.frames != v->frame_count || L.nodes != v->node_count)
-        return MCD_ERROR_MALFORMED;
-    if (v->resident) {
-        /* Opened: the clip must point at a payload the section walk decoded, not at bytes
-         * inside another one. */
-        uint32_t total = mcd_rd_u32(v->resident);
-        const uint8_t* block = v->resident + RESIDENT_SECTION_HEADER + L.resident_offset;
-        if ((uint64_t)RESIDENT_SECTION_HEADER + L.resident_offset + clip_resident_bytes(&L) > total)
+/* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`;
+ * checks what the descriptor alone shows and that the parts fit before `limit`. */
+static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t group_shift, uint32_t at,
+                                 uint32_t limit, track_layout* t) {
+    uint32_t c;
+    uint64_t end, entry;
+    t->kind = d[0];
+    if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
+    t->dims = (uint8_t)kind_dims(t->kind);
+    /* Byte 1: the key grid's shift (bits 0-1), the first segment detached (bit 2). */
+    t->grid_shift = d[1] & 3u;
+    t->split = (d[1] >> 2) & 1u;
+    t->predictor = d[2];
+    t->offset_bits = d[3];
+    t->group_shift = (uint8_t)group_shift;
+    t->keys = mcd_rd_u32(d + 4);
+    t->data_bytes = mcd_rd_u32(d + 8);
+    t->extras = mcd_rd_u32(d + 12);
+    if ((d[1] >> 3) || t->predictor > 2 || t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
+    if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
+    if ((t->data_bytes & 3u) || t->extras >= t->keys) return MCD_ERROR_MALFORMED;
+    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 16);
+    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 40);
+    entry = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims + t->grid_shift;
+    for (c = 0; c < 4; ++c) {
+        t->abits[c] = d[20 + c];
+        if (c < t->dims) {
+            if (t->abits[c] < 1 || t->abits[c] > 31) return MCD_ERROR_MALFORMED;
+            if (!mcd_in_bounds(t->step[c]) || t->step[c] < 0.0f) return MCD_ERROR_MALFORMED;
+            entry += t->abits[c];
+        } else if (t->abits[c]) {
             return MCD_ERROR_MALFORMED;
-        if (mcd_rd_u32(block) != (uint32_t)(v->payload - v->section)) return MCD_ERROR_MALFORMED;
+        }
     }
+    t->entry_bits = (uint32_t)entry;
+    t->cells = frames > 1u ? ((frames - 2u) >> t->grid_shift) + 1u : 0u;
+    t->words = (t->cells + 63u) / 64u;
+    t->groups = ((t->keys - 1u) >> group_shift) + 1u;
+    /* Extra keys name their cell: as many bits as the largest cell index needs. */
+    for (t->extra_bits = 1; t->extra_bits < 32u && t->cells > (1u << t->extra_bits); ++t->extra_bits) {}
+    t->mask = at;
+    t->dir = t->mask + 8u * t->words;
+    t->extra = t->dir + 4u * ((t->words + 3u) / 4u);
+    end = t->extra + 4u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u);
+    if (end > limit) return MCD_ERROR_MALFORMED;
+    t->table = (uint32_t)end;
+    end += 4u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u);
+    t->data = (uint32_t)(end < 0xFFFFFFFFu ? end : 0xFFFFFFFFu);
+    end += t->data_bytes;
+    if (end > limit) return MCD_ERROR_MALFORMED;
+    t->end = (uint32_t)end;
     return MCD_OK;
 }
 
-static size_t rma_resident_size(const uint8_t* section, uint32_t size) {
-    size_t need = walk_resident(section, size);
-    /* A broken walk still gets a header, so mcd_open reaches open_section and reports it. */
-    return need ? need : RESIDENT_SECTION_HEADER;
+/* ---------------------------------------------------------------- key times */
+static uint64_t mask_word(const uint8_t* p, const track_layout* t, uint32_t w) {
+    return mcd_rd_u64(p + t->mask + 8u * (size_t)w);
 }
 
-/* ---------------------------------------------------------------- decoding at open */
-typedef struct clip_block {
-    uint32_t* track_table; /* [tracks][4]: first key, key count, first value, 0 */
-    uint32_t* frames;
-    float* values;
-    uint32_t* seek;
-} clip_block;
-
-static void block_views(uint8_t* block, const layout* L, clip_block* b) {
-    uint8_t* q = block + CLIP_BLOCK_HEADER;
-    b->track_table = (uint32_t*)q;
-    q += (size_t)TRACK_ENTRY * L->tracks;
-    b->frames = (uint32_t*)q;
-    q += align16z(4u * (size_t)L->keys);
-    b->values = (float*)q;
-    q += align16z(4u * (size_t)L->values);
-    b->seek = (uint32_t*)q;
+static int cell_set(const uint8_t* p, const track_layout* t, uint32_t c) {
+    return (int)((mask_word(p, t, c >> 6) >> (c & 63u)) & 1u);
 }
 
-/* The prediction of key i's component c from the keys before it, already decoded in q: the
- * previous key, plus (predictor 1) half or (2) all of the slope of the two keys before,
- * carried over the gap to key i, rounded half up in integers. Frames increase strictly
- * (checked when they were decoded) and |q| <= 2^24, gaps < 2^32: products stay below 2^60. */
-static int64_t predict(const int32_t* q, const uint32_t* frames, uint32_t i, uint32_t dims, uint32_t c,
-                       uint32_t predictor) {
-    int64_t prev, num, den, n2;
-    if (i == 0) return 0;
-    prev = q[(i - 1u) * dims + c];
-    if (i < 2u || predictor == PREDICT_PREVIOUS) return prev;
-    num = (prev - q[(i - 2u) * dims + c]) * (int64_t)(frames[i] - frames[i - 1u]) * (int64_t)predictor;
-    den = 2 * (int64_t)(frames[i - 1u] - frames[i - 2u]);
-    n2 = 2 * num + den;
-    /* Floor division (C truncates toward zero). */
-    return prev + (n2 >= 0 ? n2 / (2 * den) : -((-n2 + 2 * den - 1) / (2 * den)));
-}
-
-static mcd_result open_clip(const layout* L, uint32_t payload_offset, uint8_t* block) {
-    clip_block b;
-    uint32_t u, first = 0, value = 0, gap_pos = 0;
-    size_t stream_off = 0;
-    const uint8_t* d;
-    int32_t* gaps;
-    mcd_result r;
-    block_views(block, L, &b);
-    ((uint32_t*)block)[0] = payload_offset;
-    ((uint32_t*)block)[1] = L->tracks;
-    ((uint32_t*)block)[2] = L->keys;
-    ((uint32_t*)block)[3] = L->values;
-    /* Key frames. Each interior key's (grid cells since the previous key's cell, offset in its
-     * cell) pair is decoded into the value array first (it holds at least 3 entries per key),
-     * then expanded into frames. */
-    gaps = (int32_t*)b.values;
-    r = mcd_entropy_decode(L->gaps, L->gap_bytes, 2u, gaps, 2u * L->interior);
-    if (r != MCD_OK) return MCD_ERROR_MALFORMED;
-    for (u = 0, d = L->descs; u < L->tracks; ++u) {
-        uint32_t kind = d[0], grid = d[1] & 15u, count = mcd_rd_u32(d + desc_counts(kind)), i;
-        uint64_t cell = 0, frame = 0;
-        b.track_table[4u * u] = first;
-        b.track_table[4u * u + 1u] = count;
-        b.frames[first] = 0;
-        for (i = 1; i + 1u < count; ++i) {
-            int32_t step = gaps[2u * gap_pos], offset = gaps[2u * gap_pos + 1u];
-            uint64_t f;
-            gap_pos++;
-            if (step < 0 || offset < 0 || (uint32_t)offset >= grid) return MCD_ERROR_MALFORMED;
-            cell += (uint64_t)step;
-            f = cell * grid + (uint32_t)offset;
-            if (f <= frame || f >= (uint64_t)L->frames - 1u) return MCD_ERROR_MALFORMED;
-            frame = f;
-            b.frames[first + i] = (uint32_t)frame;
-        }
-        if (count > 1u) b.frames[first + count - 1u] = L->frames - 1u; /* the last key is implied */
-        first += count;
-        d += desc_size(kind);
+/* Extra keys in cells before c: a binary search of the sorted list. */
+static uint32_t extras_before(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t lo = 0, hi = t->extras;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2u;
+        if (mcd_read_bits(p + t->extra, (uint64_t)mid * t->extra_bits, t->extra_bits) < c) lo = mid + 1u; else hi = mid;
     }
-    for (u = 0, d = L->descs; u < L->tracks; ++u) {
-        uint32_t kind = d[0], dims = kind_dims(kind), count = mcd_rd_u32(d + desc_counts(kind));
-        uint32_t vbytes = mcd_rd_u32(d + desc_counts(kind) + 4u), i, c, j;
-        const uint32_t* frames = b.frames + b.track_table[4u * u];
-        int32_t* q = (int32_t*)(b.values + value);
-        float step[4];
-        b.track_table[4u * u + 2u] = value;
-        /* Values: residuals from each key's prediction (docs/FORMAT.md), then q x step. */
-        r = mcd_entropy_decode(L->streams + stream_off, vbytes, dims, q, count * dims);
-        if (r != MCD_OK) return MCD_ERROR_MALFORMED;
-        desc_steps(d, kind, step);
-        for (c = 0; c < dims; ++c)
-            for (i = 0; i < count; ++i) {
-                int64_t v = predict(q, frames, i, dims, c, (uint32_t)d[1] >> 4) + q[i * dims + c];
-                if (v > MAX_Q || v < -MAX_Q) return MCD_ERROR_MALFORMED;
-                q[i * dims + c] = (int32_t)v;
+    return lo;
+}
+
+/* Keys (not counting key 0) in cells [0, c): the directory entry of c's 256-cell block, its
+ * words before c, and the extra keys there. */
+static uint32_t rank(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t w = c >> 6, block = c >> DIR_SHIFT, n = mcd_rd_u32(p + t->dir + 4u * block), k;
+    for (k = block << 2; k < w; ++k) n += mcd_popcount(mask_word(p, t, k));
+    if (c & 63u) n += mcd_popcount(mask_word(p, t, w) & (((uint64_t)1 << (c & 63u)) - 1u));
+    return n + (t->extras ? extras_before(p, t, c) : 0u);
+}
+
+/* Keys in cell c. */
+static uint32_t keys_in_cell(const uint8_t* p, const track_layout* t, uint32_t c) {
+    if (!cell_set(p, t, c)) return 0;
+    return t->extras ? 1u + extras_before(p, t, c + 1u) - extras_before(p, t, c) : 1u;
+}
+
+/* The first set cell at or after c, or t->cells when there is none. */
+static uint32_t next_set(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t w;
+    uint64_t m;
+    if (c >= t->cells) return t->cells;
+    w = c >> 6;
+    m = mask_word(p, t, w) & (~(uint64_t)0 << (c & 63u));
+    while (!m) {
+        if (++w >= t->words) return t->cells;
+        m = mask_word(p, t, w);
+    }
+    return (w << 6) + mcd_lowest_bit(m);
+}
+
+/* The last set cell at or before c (c < cells), or UINT32_MAX when there is none. */
+static uint32_t prev_set(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t w = c >> 6;
+    uint64_t m = mask_word(p, t, w);
+    if ((c & 63u) != 63u) m &= ((uint64_t)1 << ((c & 63u) + 1u)) - 1u;
+    while (!m) {
+        if (w == 0) return UINT32_MAX;
+        m = mask_word(p, t, --w);
+    }
+    return (w << 6) + mcd_highest_bit(m);
+}
+
+/* ---------------------------------------------------------------- key values */
+/* Decodes a track's keys in index order from a group's first key on. */
+typedef struct cursor {
+    uint32_t key;      /* index of the key the next call decodes */
+    uint32_t left;     /* keys left in the current group after the last decoded one */
+    uint32_t bit;      /* bit position (in the data area) of the next key record */
+    uint32_t exc;      /* bit position of the current group's next outlier */
+    uint8_t w[4];      /* residual widths of the current group */
+    uint32_t keybits;  /* bits of one key record in the current group */
+    int32_t q[4], q2[4]; /* the last two decoded values, for the prediction */
+} cursor;
+
+static int64_t floor_half(int64_t v) {
+    return v >= 0 ? v / 2 : -((-v + 1) / 2);
+}
+
+/* Enter group g: its entry gives the record layout and the first key, written to q and o. */
+static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4], uint32_t* o) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)g * t->entry_bits;
+    uint32_t c, n, first = g << t->group_shift;
+    cur->bit = mcd_read_bits(table, bit, t->offset_bits);
+    bit += t->offset_bits;
+    cur->keybits = t->grid_shift;
+    for (c = 0; c < t->dims; ++c) {
+        cur->w[c] = (uint8_t)mcd_read_bits(table, bit, WIDTH_BITS);
+        cur->keybits += cur->w[c];
+        bit += WIDTH_BITS;
+    }
+    *o = mcd_read_bits(table, bit, t->grid_shift);
+    bit += t->grid_shift;
+    for (c = 0; c < t->dims; ++c) {
+        q[c] = cur->q[c] = cur->q2[c] = mcd_read_signed(table, bit, t->abits[c]);
+        bit += t->abits[c];
+    }
+    n = t->keys - first < (1u << t->group_shift) ? t->keys - first : 1u << t->group_shift;
+    cur->left = n - 1u;
+    cur->exc = cur->bit + cur->left * cur->keybits;
+    cur->key = first + 1u;
+}
+
+/* Decode the key the cursor points at (its value into q, its in-cell offset into o). */
+static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4], uint32_t* o) {
+    const uint8_t* data = p + t->data;
+    uint32_t c, bit;
+    if (cur->left == 0) {
+        group_open(p, t, cur->key >> t->group_shift, cur, q, o);
+        return;
+    }
+    bit = cur->bit;
+    *o = mcd_read_bits(data, bit, t->grid_shift);
+    bit += t->grid_shift;
+    for (c = 0; c < t->dims; ++c) {
+        uint32_t w = cur->w[c];
+        int64_t v = cur->q[c];
+        if (w) {
+            int32_t r = mcd_read_signed(data, bit, w);
+            bit += w;
+            if (r == -(int32_t)((uint32_t)1 << (w - 1u)) && w > 0) {
+                v = mcd_read_signed(data, cur->exc, t->abits[c]); /* an outlier, stored whole */
+                cur->exc += t->abits[c];
+            } else {
+                v += floor_half((v - cur->q2[c]) * t->predictor + 1) + r;
             }
-        for (i = 0; i < count * dims; ++i) {
-            b.values[value + i] = (float)q[i] * step[i % dims];
-            if (!mcd_in_bounds(b.values[value + i])) return MCD_ERROR_MALFORMED;
+        } else {
+            v += floor_half((v - cur->q2[c]) * t->predictor + 1);
         }
-        /* Seek: per 32-frame block, the last key at or before its first frame. */
-        for (j = 0, i = 0; j < L->seek_len; ++j) {
-            uint32_t f = j << SEEK_SHIFT;
-            while (i + 1u < count && frames[i + 1u] <= f) ++i;
-            b.seek[(size_t)u * L->seek_len + j] = i;
-        }
-        stream_off += vbytes;
-        value += count * dims;
-        d += desc_size(kind);
+        /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
+        if (v > MAX_Q) v = MAX_Q;
+        if (v < -MAX_Q) v = -MAX_Q;
+        cur->q2[c] = cur->q[c];
+        q[c] = cur->q[c] = (int32_t)v;
     }
-    return MCD_OK;
+    cur->bit = bit;
+    cur->left--;
+    cur->key++;
 }
 
-static mcd_result rma_open_section(const uint8_t* section, uint32_t size, uint8_t* resident) {
-    size_t total = walk_resident(section, size), pos = SECTION_HEADER;
-    uint32_t count, i;
-    if (total == 0) return MCD_ERROR_MALFORMED;
-    count = mcd_rd_u32(section);
-    ((uint32_t*)resident)[0] = (uint32_t)total;
-    ((uint32_t*)resident)[1] = count;
-    for (i = 0; i < count; ++i) {
-        layout L;
-        mcd_result r;
-        parse_payload(section + pos, size - pos, &L); /* checked by the walk */
-        r = open_clip(&L, (uint32_t)pos, resident + RESIDENT_SECTION_HEADER + L.resident_offset);
-        if (r != MCD_OK) return r;
-        pos += L.size;
-    }
-    return MCD_OK;
-}
+/* ---------------------------------------------------------------- sampling state */
+/* Where a key's time lies: its cell (NO_CELL for key 0, at frame 0) and how many later keys
+ * share that cell. */
+#define NO_CELL UINT32_MAX
+typedef struct key_place {
+    uint32_t cell, after;
+} key_place;
 
-/* ---------------------------------------------------------------- sampling */
+/* A track in the scratch: its layout, what its descriptor stores, the four keys around the
+ * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 3. */
 typedef struct track_state {
-    uint32_t kind, dims, count, valid;
-    const uint32_t* frames;
-    const float* values;
-    const uint32_t* seek;
+    track_layout L;
     mcd_quat ref;
     float axis[4];
-    uint32_t seg;      /* interval [frames[seg], frames[seg + 1]] */
+    uint32_t valid;
+    uint32_t i;          /* the segment [key i, key i + 1] the curve below belongs to */
+    key_place place[4];  /* where keys i - 1 ... i + 2 lie */
+    float t[4];          /* their frames */
+    float v[4][4];       /* their values */
     float t1, t2, inv_h;
     float coef[4][4];
+    cursor cur;          /* decodes key i + 3 next (when it exists) */
 } track_state;
 
 typedef struct node_plan {
-    mcd_transform base;
-    int32_t rot_track, trans_track;
+    mcd_transform base; /* rest pose and constants resolved once per clip */
+    int16_t track[3];   /* rotation, translation, scale track, or -1 */
+    uint16_t pad;
 } node_plan;
-
-typedef struct rma_views {
-    node_plan* plans;
-    track_state* tracks;
-} rma_views;
 
 static size_t rma_scratch_size(const mcd_clip_view* v) {
     uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
-    return align16z(sizeof(node_plan) * nodes) + align16z(sizeof(track_state) * tracks);
+    return mcd_align16(sizeof(node_plan) * nodes) + mcd_align16(sizeof(track_state) * tracks);
 }
 
-static void scratch_views(void* scratch, uint32_t nodes, rma_views* s) {
-    s->plans = (node_plan*)scratch;
-    s->tracks = (track_state*)((uint8_t*)scratch + align16z(sizeof(node_plan) * nodes));
+static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, track_state** tracks) {
+    *plans = (node_plan*)scratch;
+    *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-static void prepare(const layout* L, const mcd_clip_view* v, const rma_views* s) {
-    const uint8_t* block = v->resident + RESIDENT_SECTION_HEADER + L->resident_offset;
-    clip_block b;
-    const uint8_t* d = L->descs;
-    uint32_t i, k, track = 0, consts = 0;
-    block_views((uint8_t*)block, L, &b);
-    for (i = 0; i < L->tracks; ++i) {
-        track_state* ts = &s->tracks[i];
-        memset(ts, 0, sizeof *ts);
-        ts->kind = d[0];
-        ts->dims = kind_dims(ts->kind);
-        ts->count = b.track_table[4u * i + 1u];
-        ts->frames = b.frames + b.track_table[4u * i];
-        ts->values = b.values + b.track_table[4u * i + 2u];
-        ts->seek = b.seek + (size_t)i * L->seek_len;
-        if (ts->kind != KIND_TRANSLATION) ts->ref = mcd_reference_at(d + 2);
-        if (ts->kind == KIND_TWIST) mcd_axis_at(d + 20, ts->axis);
-        d += desc_size(ts->kind);
+static float dequantize(const track_layout* t, uint32_t c, int32_t q) {
+    /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
+    return (float)((double)q * (double)t->step[c]);
+}
+
+static float frame_of(const track_layout* t, uint32_t cell, uint32_t offset) {
+    return cell == NO_CELL ? 0.0f : (float)(1u + (cell << t->grid_shift) + offset);
+}
+
+/* The place of the key after one at `k`. */
+static key_place place_next(const uint8_t* p, const track_layout* t, key_place k) {
+    key_place n;
+    if (k.cell != NO_CELL && k.after > 0) {
+        n.cell = k.cell;
+        n.after = k.after - 1u;
+        return n;
     }
-    for (i = 0; i < L->nodes; ++i) {
-        node_plan* np = &s->plans[i];
-        uint32_t rm = L->modes[i] & 3u, tm = (L->modes[i] >> 2) & 3u;
-        np->base.rotation[0] = np->base.rotation[1] = np->base.rotation[2] = 0.0f;
-        np->base.rotation[3] = 1.0f;
-        /* Rest offsets; none for curve sets of codec rma-pca, which have no skeleton. */
-        for (k = 0; k < 3; ++k)
-            np->base.translation[k] =
-                v->skeleton ? mcd_rd_f32(v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE + 8 + 4 * k) : 0.0f;
-        np->rot_track = -1;
-        np->trans_track = -1;
-        if (rm == 1u) {
-            for (k = 0; k < 4; ++k) np->base.rotation[k] = mcd_rd_f32(L->consts + 4u * (consts + k));
-            consts += 4u;
-        } else if (rm == 2u) {
-            np->rot_track = (int32_t)track++;
-        }
-        if (tm == 1u) {
-            for (k = 0; k < 3; ++k) np->base.translation[k] = mcd_rd_f32(L->consts + 4u * (consts + k));
-            consts += 3u;
-        } else if (tm == 2u) {
-            np->trans_track = (int32_t)track++;
-        }
-    }
+    n.cell = next_set(p, t, k.cell == NO_CELL ? 0u : k.cell + 1u);
+    n.after = n.cell < t->cells ? keys_in_cell(p, t, n.cell) - 1u : 0u;
+    return n;
 }
 
-/* Make interval `seg` current: its four keys (ends repeated) as a cubic in s. */
-static void set_segment(track_state* ts, uint32_t seg) {
+/* The place of the key before one at `k` (k is not key 0). */
+static key_place place_prev(const uint8_t* p, const track_layout* t, key_place k) {
+    key_place n;
+    if (keys_in_cell(p, t, k.cell) > k.after + 1u) { /* not the first key of its cell */
+        n.cell = k.cell;
+        n.after = k.after + 1u;
+        return n;
+    }
+    n.cell = k.cell ? prev_set(p, t, k.cell - 1u) : NO_CELL;
+    n.after = 0;
+    return n;
+}
+
+/* The in-cell offset of key k >= 1 (0 on a grid of one frame), read directly. */
+static uint32_t key_offset(const uint8_t* p, const track_layout* t, uint32_t k) {
+    uint32_t g = k >> t->group_shift, pos = k & ((1u << t->group_shift) - 1u), c, keybits = t->grid_shift;
+    uint64_t bit = (uint64_t)g * t->entry_bits;
+    uint32_t base;
+    if (!t->grid_shift) return 0;
+    base = mcd_read_bits(p + t->table, bit, t->offset_bits);
+    bit += t->offset_bits;
+    for (c = 0; c < t->dims; ++c) keybits += mcd_read_bits(p + t->table, bit + WIDTH_BITS * c, WIDTH_BITS);
+    if (pos == 0) return mcd_read_bits(p + t->table, bit + WIDTH_BITS * t->dims, t->grid_shift);
+    return mcd_read_bits(p + t->data, (uint64_t)base + (uint64_t)(pos - 1u) * keybits, t->grid_shift);
+}
+
+static void set_curve(track_state* ts) {
     float t[4], v[4][4];
-    uint32_t idx[4], j, c, last = ts->count - 1u;
-    idx[0] = seg ? seg - 1u : 0u;
-    idx[1] = seg;
-    idx[2] = seg + 1u;
-    idx[3] = seg + 2u <= last ? seg + 2u : last;
-    for (j = 0; j < 4; ++j) {
-        t[j] = (float)ts->frames[idx[j]];
-        for (c = 0; c < ts->dims; ++c) v[j][c] = ts->values[(size_t)idx[j] * ts->dims + c];
+    memcpy(t, ts->t, sizeof t);
+    memcpy(v, ts->v, sizeof v);
+    /* A detached first segment (capture that jumps after frame 0): key 0 and key 1 are each
+     * an end of their curves, so the first segment is the straight line between them and key
+     * 0 takes no part in key 1's tangent. */
+    if (ts->L.split && ts->i <= 1u) {
+        memcpy(v[0], v[1], sizeof v[0]);
+        t[0] = t[1];
+        if (ts->i == 0) {
+            memcpy(v[3], v[2], sizeof v[3]);
+            t[3] = t[2];
+        }
     }
-    ts->seg = seg;
     ts->t1 = t[1];
     ts->t2 = t[2];
-    ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->dims, ts->coef);
+    ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
     ts->valid = 1;
 }
 
-/* Interval holding x: [frames[seg], frames[seg + 1]) or the last one for x at the end. */
-static uint32_t find_segment(const track_state* ts, float x) {
-    uint32_t seg = ts->seek[(uint32_t)x >> SEEK_SHIFT], last = ts->count - 2u;
-    if (seg > last) seg = last;
-    while (seg < last && (float)ts->frames[seg + 1u] <= x) ++seg;
-    return seg;
+/* Decode the key after slot `slot - 1`'s into slot `slot`. */
+static void load_next(const uint8_t* p, track_state* ts, uint32_t slot) {
+    int32_t q[4];
+    uint32_t o, c;
+    cursor_next(p, &ts->L, &ts->cur, q, &o);
+    ts->place[slot] = place_next(p, &ts->L, ts->place[slot - 1u]);
+    ts->t[slot] = frame_of(&ts->L, ts->place[slot].cell, o);
+    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = dequantize(&ts->L, c, q[c]);
 }
 
-static int in_segment(const track_state* ts, uint32_t seg, float x) {
-    float hi = (float)ts->frames[seg + 1u];
-    return x >= (float)ts->frames[seg] && (x < hi || (x == hi && seg + 2u == ts->count));
+static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
+    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
+    ts->t[to] = ts->t[from];
+    ts->place[to] = ts->place[from];
 }
 
-static void track_value(track_state* ts, float x, float out[4]) {
-    uint32_t c;
+/* The last key at or before integer frame xi and its place. */
+static uint32_t key_at_or_before(const uint8_t* p, const track_layout* t, uint32_t xi, key_place* at) {
+    uint32_t cx, r, n, j;
+    at->cell = NO_CELL;
+    at->after = 0;
+    if (xi == 0) return 0;
+    cx = (xi - 1u) >> t->grid_shift;
+    r = rank(p, t, cx);
+    n = keys_in_cell(p, t, cx);
+    for (j = n; j > 0; --j)
+        if (1u + (cx << t->grid_shift) + key_offset(p, t, r + j) <= xi) {
+            at->cell = cx;
+            at->after = n - j;
+            return r + j;
+        }
+    if (r == 0) return 0;
+    at->cell = prev_set(p, t, cx - 1u); /* r > 0: an earlier cell holds keys */
+    return r;
+}
+
+/* Random access: the segment holding frame position x, its four keys decoded afresh. */
+static void locate(const uint8_t* p, track_state* ts, float x) {
+    const track_layout* t = &ts->L;
+    uint32_t last = t->keys - 1u, i, first, k, c, o, xi = (uint32_t)x;
+    int32_t q[4];
+    key_place at;
+    /* i: the last key at or before x; the segment [i, i + 1], the last one at the clip's end. */
+    i = key_at_or_before(p, t, xi, &at);
+    if (i >= last) { /* x is the last frame: the last segment */
+        i = last - 1u;
+        at = place_prev(p, t, at);
+    }
+    ts->i = i;
+    ts->place[1] = at;
+    ts->place[0] = i == 0 ? at : place_prev(p, t, at);
+    /* Decode keys from i - 1 (or 0) on: open its group and walk the records before it. */
+    first = i ? i - 1u : 0u;
+    group_open(p, t, first >> t->group_shift, &ts->cur, q, &o);
+    for (k = first & ~((1u << t->group_shift) - 1u); k < first; ++k) cursor_next(p, t, &ts->cur, q, &o);
+    for (c = 0; c < t->dims; ++c) ts->v[0][c] = dequantize(t, c, q[c]);
+    ts->t[0] = frame_of(t, ts->place[0].cell, o);
+    if (i == 0) {
+        repeat_slot(ts, 1, 0);
+    } else {
+        cursor_next(p, t, &ts->cur, q, &o);
+        for (c = 0; c < t->dims; ++c) ts->v[1][c] = dequantize(t, c, q[c]);
+        ts->t[1] = frame_of(t, ts->place[1].cell, o);
+    }
+    load_next(p, ts, 2);
+    if (i + 2u <= last)
+        load_next(p, ts, 3);
+    else
+        repeat_slot(ts, 3, 2);
+    set_curve(ts);
+}
+
+/* The curve of one track at x: the cached segment, a step or two forward in sequential
+ * playback, or a fresh locate. */
+static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
+    uint32_t c, last = ts->L.keys - 1u, steps;
     float s;
-    if (ts->count == 1u) { /* a one-frame clip */
-        for (c = 0; c < ts->dims; ++c) out[c] = ts->values[c];
+    if (last == 0) { /* a one-frame clip */
+        for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
         return;
     }
-    if (!ts->valid || x < ts->t1 || x > ts->t2 || (x == ts->t2 && ts->seg + 2u < ts->count)) {
-        /* Sequential playback moves on by a key or two; anything else seeks. */
-        uint32_t seg = ts->seg;
-        if (ts->valid && x > ts->t1 && seg + 2u < ts->count && in_segment(ts, seg + 1u, x))
-            seg += 1u;
-        else if (ts->valid && x > ts->t1 && seg + 3u < ts->count && in_segment(ts, seg + 2u, x))
-            seg += 2u;
+    if (!ts->valid || x < ts->t1) {
+        locate(p, ts, x);
+    } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
+        for (steps = 0; steps < 2 && x >= ts->t[2] && ts->i + 1u < last; ++steps) {
+            memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
+            memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
+            memmove(ts->place, ts->place + 1, sizeof ts->place[0] * 3u);
+            ts->i++;
+            if (ts->i + 2u <= last)
+                load_next(p, ts, 3);
+            else
+                repeat_slot(ts, 3, 2);
+        }
+        if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
+            locate(p, ts, x);
         else
-            seg = find_segment(ts, x);
-        set_segment(ts, seg);
+            set_curve(ts);
     }
     s = (x - ts->t1) * ts->inv_h;
-    for (c = 0; c < ts->dims; ++c)
+    for (c = 0; c < ts->L.dims; ++c)
         out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
 }
 
-static mcd_result rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                             void* scratch, int fresh) {
-    rma_views s;
+/* Per clip: each track's layout and constants, each node's base transform and tracks. */
+static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* tracks) {
+    const uint8_t* p = v->payload;
+    header H;
+    const uint8_t* d;
+    uint32_t i, k, m, track = 0, consts = 0, at, off;
+    parse_header(p, v->payload_size, &H); /* validated: cannot fail */
+    d = H.descs;
+    for (i = 0, off = 0; i < H.tracks; ++i) off += desc_size(H.descs[off]);
+    at = (uint32_t)mcd_align4((size_t)(H.descs - p) + off);
+    for (i = 0; i < H.tracks; ++i) {
+        track_state* ts = &tracks[i];
+        memset(ts, 0, sizeof *ts);
+        track_geometry(d, H.frames, H.group_shift, at, H.size, &ts->L);
+        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 24);
+        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 32, ts->axis);
+        if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
+            int32_t q[4];
+            uint32_t o, c;
+            group_open(p, &ts->L, 0, &ts->cur, q, &o);
+            for (c = 0; c < ts->L.dims; ++c) ts->v[0][c] = dequantize(&ts->L, c, q[c]);
+        }
+        at = ts->L.end;
+        d += desc_size(ts->L.kind);
+    }
+    for (i = 0; i < H.nodes; ++i) {
+        node_plan* np = &plans[i];
+        uint32_t mode = H.modes[i];
+        if (v->skeleton)
+            mcd_skel_rest(v->skeleton, i, &np->base);
+        else
+            mcd_transform_identity(&np->base); /* curve sets of codec rma-pca have no skeleton */
+        for (m = 0; m < 3; ++m) {
+            uint32_t mm = (mode >> (2u * m)) & 3u, n = m == 0 ? 4u : 3u;
+            float* field = m == 0 ? np->base.rotation : m == 1 ? np->base.translation : np->base.scale;
+            np->track[m] = -1;
+            if (mm == MODE_CONSTANT) {
+                for (k = 0; k < n; ++k) field[k] = mcd_rd_f32(H.consts + 4u * (consts + k));
+                consts += n;
+            } else if (mm == MODE_ANIMATED) {
+                np->track[m] = (int16_t)track++;
+            }
+        }
+    }
+}
+
+static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                       int fresh) {
+    node_plan* plans;
+    track_state* tracks;
     uint32_t i, nodes = mcd_rd_u32(v->payload + 8);
     (void)flags;
-    if (!v->resident) return MCD_ERROR_INVALID_ARGUMENT; /* validated but not opened */
-    scratch_views(scratch, nodes, &s);
-    if (fresh) {
-        layout L;
-        parse_payload(v->payload, v->payload_size, &L); /* validated at open: cannot fail */
-        prepare(&L, v, &s);
-    }
+    scratch_views(scratch, nodes, &plans, &tracks);
+    if (fresh) prepare(v, plans, tracks);
     for (i = 0; i < nodes; ++i) {
-        const node_plan* np = &s.plans[i];
+        const node_plan* np = &plans[i];
+        float val[4];
         out[i] = np->base;
-        if (np->rot_track >= 0) {
-            track_state* ts = &s.tracks[np->rot_track];
-            float val[4];
-            track_value(ts, x, val);
-            mcd_set_rotation(out[i].rotation, mcd_track_rotation(ts->kind, ts->ref, ts->axis, val));
+        if (np->track[0] >= 0) {
+            track_state* ts = &tracks[np->track[0]];
+            track_value(v->payload, ts, x, val);
+            mcd_set_rotation(out[i].rotation, mcd_track_rotation(ts->L.kind, ts->ref, ts->axis, val));
         }
-        if (np->trans_track >= 0) {
-            float val[4];
-            track_value(&s.tracks[np->trans_track], x, val);
-            out[i].translation[0] = val[0];
-            out[i].translation[1] = val[1];
-            out[i].translation[2] = val[2];
+        if (np->track[1] >= 0) {
+            track_value(v->payload, &tracks[np->track[1]], x, val);
+            memcpy(out[i].translation, val, sizeof out[i].translation);
+        }
+        if (np->track[2] >= 0) {
+            track_value(v->payload, &tracks[np->track[2]], x, val);
+            memcpy(out[i].scale, val, sizeof out[i].scale);
         }
     }
+}
+
+/* ---------------------------------------------------------------- validation */
+/* Every rule of one track's mask, directory, group table and data, decoding every key. */
+static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
+    uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, tbits;
+    uint32_t w, set = 0, g, c, k, key = 0, last_frame = 0, prev_extra = 0;
+    key_place place = {NO_CELL, 0};
+    cursor cur;
+    /* Mask: no bit past the cells; the directory counts the keys before each 256 cells. */
+    for (w = 0; w < t->words; ++w) {
+        uint64_t m = mask_word(p, t, w);
+        if ((w & 3u) == 0 && mcd_rd_u32(p + t->dir + 4u * (w >> 2)) != set) return MCD_ERROR_MALFORMED;
+        if (w + 1u == t->words && (t->cells & 63u) && (m >> (t->cells & 63u))) return MCD_ERROR_MALFORMED;
+        set += mcd_popcount(m);
+    }
+    if (set + t->extras != t->keys - 1u) return MCD_ERROR_MALFORMED;
+    /* Extra keys: sorted cells that hold a key already; the list's padding is zero. */
+    for (k = 0; k < t->extras; ++k) {
+        uint32_t e = mcd_read_bits(p + t->extra, (uint64_t)k * t->extra_bits, t->extra_bits);
+        if (e >= t->cells || e < prev_extra || !cell_set(p, t, e)) return MCD_ERROR_MALFORMED;
+        prev_extra = e;
+    }
+    for (tbits = (uint64_t)t->extras * t->extra_bits; tbits < 32u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u); ++tbits)
+        if (mcd_read_bits(p + t->extra, tbits, 1)) return MCD_ERROR_MALFORMED;
+    /* The last frame is a key: the last cell is set. */
+    if (t->keys > 1u && !((mask_word(p, t, (t->cells - 1u) >> 6) >> ((t->cells - 1u) & 63u)) & 1u)) return MCD_ERROR_MALFORMED;
+    /* Group table padding. */
+    tbits = (uint64_t)t->groups * t->entry_bits;
+    for (; tbits < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++tbits)
+        if (mcd_read_bits(p + t->table, tbits, 1)) return MCD_ERROR_MALFORMED;
+    /* Every key, in order: records and outliers within the data area, groups back to back. */
+    for (g = 0; g < t->groups; ++g) {
+        uint64_t ebit = (uint64_t)g * t->entry_bits + t->offset_bits;
+        uint32_t n = t->keys - (g << t->group_shift), keybits = t->grid_shift;
+        int32_t q[4];
+        uint32_t o;
+        if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
+        if (mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits, t->offset_bits) != bit) return MCD_ERROR_MALFORMED;
+        for (c = 0; c < t->dims; ++c) {
+            uint32_t width = mcd_read_bits(p + t->table, ebit + WIDTH_BITS * c, WIDTH_BITS);
+            if (width > 30u) return MCD_ERROR_MALFORMED;
+            keybits += width;
+        }
+        if (bit + (uint64_t)(n - 1u) * keybits > data_bits) return MCD_ERROR_MALFORMED;
+        cur.left = 0;
+        cur.key = g << t->group_shift;
+        group_open(p, t, g, &cur, q, &o);
+        for (k = 0; k < n; ++k) {
+            uint32_t cell, frame;
+            (void)cell;
+            if (k > 0) {
+                /* Outliers: the escape codes of this record tell how many bits it consumes. */
+                uint64_t need = cur.exc;
+                uint32_t b = cur.bit + t->grid_shift;
+                for (c = 0; c < t->dims; ++c) {
+                    if (cur.w[c] && mcd_read_signed(p + t->data, b, cur.w[c]) == -(int32_t)((uint32_t)1 << (cur.w[c] - 1u)))
+                        need += t->abits[c];
+                    b += cur.w[c];
+                }
+                if (need > data_bits) return MCD_ERROR_MALFORMED;
+                cursor_next(p, t, &cur, q, &o);
+            }
+            for (c = 0; c < t->dims; ++c) {
+                if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
+                if (!mcd_in_bounds(dequantize(t, c, q[c]))) return MCD_ERROR_MALFORMED;
+            }
+            if (key == 0) {
+                if (o != 0) return MCD_ERROR_MALFORMED; /* key 0 is frame 0 */
+            } else {
+                place = place_next(p, t, place);
+                cell = place.cell;
+                frame = 1u + (cell << t->grid_shift) + o;
+                if (frame <= last_frame || frame > frames - 1u) return MCD_ERROR_MALFORMED;
+                if (key == t->keys - 1u && frame != frames - 1u) return MCD_ERROR_MALFORMED;
+                last_frame = frame;
+            }
+            key++;
+        }
+        bit = cur.exc;
+    }
+    /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
+    if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
+    for (; bit < data_bits; ++bit)
+        if (mcd_read_bits(p + t->data, bit, 1)) return MCD_ERROR_MALFORMED;
     return MCD_OK;
 }
 
+static mcd_result rma_validate(const mcd_clip_view* v) {
+    const uint8_t* p = v->payload;
+    header H;
+    mcd_result r;
+    uint32_t i, m, k, off = 0, consts = 0, track = 0, at;
+    static const uint8_t kinds[3][2] = {{KIND_MRP, KIND_TWIST}, {KIND_TRANSLATION, 0}, {KIND_SCALE, 0}};
+    if ((size_t)(v->payload - v->section) < SECTION_HEADER) return MCD_ERROR_MALFORMED;
+    r = parse_header(p, v->payload_size, &H);
+    if (r != MCD_OK) return r;
+    if (H.size != v->payload_size || H.frames != v->frame_count || H.nodes != v->node_count) return MCD_ERROR_MALFORMED;
+    for (i = 0; i < H.constants; ++i)
+        if (!mcd_in_bounds(mcd_rd_f32(H.consts + 4u * i))) return MCD_ERROR_MALFORMED;
+    /* Node modes: constants and tracks taken in node order, rotation, translation, scale. */
+    for (i = 0; i < H.nodes; ++i) {
+        uint32_t mode = H.modes[i];
+        if (mode >> 6) return MCD_ERROR_MALFORMED;
+        for (m = 0; m < 3; ++m) {
+            uint32_t mm = (mode >> (2u * m)) & 3u, n = m == 0 ? 4u : 3u, kind;
+            if (mm == 3u) return MCD_ERROR_MALFORMED;
+            if (mm == MODE_CONSTANT) {
+                if (consts + n > H.constants) return MCD_ERROR_MALFORMED;
+                if (m == 0 && !mcd_unit_quat_at(H.consts + 4u * consts)) return MCD_ERROR_MALFORMED;
+                consts += n;
+            } else if (mm == MODE_ANIMATED) {
+                if (track >= H.tracks || (size_t)(H.descs - p) + off + 4u > H.size) return MCD_ERROR_MALFORMED;
+                kind = H.descs[off];
+                if (kind == 0 || (kind != kinds[m][0] && kind != kinds[m][1])) return MCD_ERROR_MALFORMED;
+                if ((size_t)(H.descs - p) + off + desc_size(kind) > H.size) return MCD_ERROR_MALFORMED;
+                if (kind == KIND_MRP || kind == KIND_TWIST) {
+                    if (mcd_rd_u16(H.descs + off + 30)) return MCD_ERROR_MALFORMED;
+                }
+                if (kind == KIND_TWIST) {
+                    const uint8_t* a = H.descs + off + 32;
+                    float ax = (float)(int16_t)mcd_rd_u16(a), ay = (float)(int16_t)mcd_rd_u16(a + 2);
+                    float az = (float)(int16_t)mcd_rd_u16(a + 4);
+                    if (mcd_rd_u16(a + 6)) return MCD_ERROR_MALFORMED;
+                    if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
+                }
+                /* The geometry is checked below, once every descriptor's size is known. */
+                off += desc_size(kind);
+                track++;
+            }
+        }
+    }
+    if (track != H.tracks || consts != H.constants) return MCD_ERROR_MALFORMED;
+    /* Track data back to back after the descriptors, then at least 8 zero bytes (the bit
+     * reader's 64-bit loads), zero padding to the payload size. */
+    at = (uint32_t)mcd_align4((size_t)(H.descs - p) + off);
+    if (at > H.size) return MCD_ERROR_MALFORMED;
+    for (k = (uint32_t)((size_t)(H.descs - p) + off); k < at; ++k)
+        if (p[k]) return MCD_ERROR_MALFORMED;
+    for (i = 0, off = 0; i < H.tracks; ++i) {
+        track_layout t;
+        const uint8_t* d = H.descs + off;
+        r = track_geometry(d, H.frames, H.group_shift, at, H.size, &t);
+        if (r != MCD_OK) return r;
+        if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
+        r = check_track(p, &t, H.frames);
+        if (r != MCD_OK) return r;
+        at = t.end;
+        off += desc_size(t.kind);
+    }
+    if ((size_t)H.size != mcd_align4((size_t)at + 8u)) return MCD_ERROR_MALFORMED;
+    for (k = at; k < H.size; ++k)
+        if (p[k]) return MCD_ERROR_MALFORMED;
+    return MCD_OK;
+}
+
+/* The section: a 16-byte header, then the payloads back to back, each one a clip's. */
+static mcd_result rma_validate_section(const uint8_t* s, uint32_t size) {
+    uint32_t count, i;
+    size_t pos = SECTION_HEADER;
+    if (size < SECTION_HEADER) return MCD_ERROR_MALFORMED;
+    count = mcd_rd_u32(s);
+    if (count == 0 || mcd_rd_u32(s + 4) || mcd_rd_u32(s + 8) || mcd_rd_u32(s + 12)) return MCD_ERROR_MALFORMED;
+    for (i = 0; i < count; ++i) {
+        uint32_t n;
+        if (size - pos < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
+        n = mcd_rd_u32(s + pos);
+        if (n < PAYLOAD_HEADER || (n & 3u) || n > size - pos) return MCD_ERROR_MALFORMED;
+        pos += n;
+    }
+    return pos == size ? MCD_OK : MCD_ERROR_MALFORMED;
+}
+
 const mcd_codec_ops mcd_codec_rma_ops = {
-    MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, rma_validate, rma_resident_size, rma_open_section,
-    rma_scratch_size, rma_sample};
+    MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 2u, rma_validate_section, rma_validate, rma_scratch_size, rma_sample};

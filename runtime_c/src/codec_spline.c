@@ -56,15 +56,9 @@ static uint32_t time_bits(const layout* L, uint32_t n) {
     return n * L->shift < L->block_len - 1u ? n * L->shift : L->block_len - 1u;
 }
 
-/* `n` <= 32 bits at bit position `pos`. The stream's 8-byte zero tail makes the load safe. */
-static inline uint32_t read_bits(const uint8_t* stream, uint64_t pos, uint32_t n) {
-    uint64_t w = mcd_rd_u64(stream + (size_t)(pos >> 3)) >> (pos & 7u);
-    return n >= 32u ? (uint32_t)w : (uint32_t)(w & ((1u << n) - 1u));
-}
-
 static uint64_t read_mask(const uint8_t* stream, uint64_t pos, uint32_t n) {
-    if (n <= 32u) return read_bits(stream, pos, n);
-    return (uint64_t)read_bits(stream, pos, 32u) | ((uint64_t)read_bits(stream, pos + 32u, n - 32u) << 32);
+    if (n <= 32u) return mcd_read_bits(stream, pos, n);
+    return (uint64_t)mcd_read_bits(stream, pos, 32u) | ((uint64_t)mcd_read_bits(stream, pos + 32u, n - 32u) << 32);
 }
 
 /* ---------------------------------------------------------------- validation */
@@ -112,14 +106,14 @@ static uint64_t check_block(const layout* L, const uint8_t* keybits, uint32_t j,
         if (!last) {
             uint32_t tb, e, prev = 0;
             if (pos + L->shift > limit) return UINT64_MAX;
-            n = read_bits(L->stream, pos, L->shift);
+            n = mcd_read_bits(L->stream, pos, L->shift);
             pos += L->shift;
             if (n + 1u > span) return UINT64_MAX;
             tb = time_bits(L, n);
             if (pos + tb > limit) return UINT64_MAX;
             if (n * L->shift < L->block_len - 1u) {
                 for (e = 0; e < n; ++e) {
-                    uint32_t off = read_bits(L->stream, pos + (uint64_t)e * L->shift, L->shift);
+                    uint32_t off = mcd_read_bits(L->stream, pos + (uint64_t)e * L->shift, L->shift);
                     if (off <= prev || off >= span) return UINT64_MAX;
                     prev = off;
                 }
@@ -251,18 +245,15 @@ typedef struct spline_state {
 } spline_state;
 
 /* Layout: spline_state | node_plan[N] | track_state[T] | WALK_SLOTS x (walk_header | u32 n[T] | u32 tpos[T] | u32 vpos[T]) */
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
-}
 
 static size_t walk_slot_size(uint32_t tracks) {
-    return align16z(sizeof(walk_header) + 3u * 4u * (size_t)tracks);
+    return mcd_align16(sizeof(walk_header) + 3u * 4u * (size_t)tracks);
 }
 
 static size_t spline_scratch_size(const mcd_clip_view* v) {
     uint32_t tracks = mcd_rd_u32(v->payload + 8), nodes = mcd_rd_u32(v->payload + 4);
-    return align16z(sizeof(spline_state)) + align16z(sizeof(node_plan) * nodes) +
-           align16z(sizeof(track_state) * tracks) + WALK_SLOTS * walk_slot_size(tracks);
+    return mcd_align16(sizeof(spline_state)) + mcd_align16(sizeof(node_plan) * nodes) +
+           mcd_align16(sizeof(track_state) * tracks) + WALK_SLOTS * walk_slot_size(tracks);
 }
 
 /* Block walk: per track, extra-key count and bit positions of its times and values. */
@@ -285,11 +276,11 @@ typedef struct views {
 static void scratch_views(void* scratch, uint32_t nodes, uint32_t tracks, views* s) {
     uint8_t* b = (uint8_t*)scratch;
     s->st = (spline_state*)b;
-    b += align16z(sizeof(spline_state));
+    b += mcd_align16(sizeof(spline_state));
     s->plans = (node_plan*)b;
-    b += align16z(sizeof(node_plan) * nodes);
+    b += mcd_align16(sizeof(node_plan) * nodes);
     s->tracks = (track_state*)b;
-    b += align16z(sizeof(track_state) * tracks);
+    b += mcd_align16(sizeof(track_state) * tracks);
     s->walks = b;
 }
 
@@ -307,7 +298,7 @@ static walk get_walk_slow(const layout* L, const views* s, uint32_t j) {
         for (u = 0; u < L->tracks; ++u) {
             uint32_t n = 0;
             if (!last) {
-                n = read_bits(L->stream, pos, L->shift);
+                n = mcd_read_bits(L->stream, pos, L->shift);
                 pos += L->shift;
             }
             w.n[u] = n;
@@ -331,42 +322,17 @@ static const walk* walk_of(const layout* L, views* s, uint32_t j) {
     return &s->resolved[slot];
 }
 
-/* Index of the lowest set bit of a non-zero mask. */
-static uint32_t lowest_bit(uint64_t m) {
-#if defined(__GNUC__) || defined(__clang__)
-    return (uint32_t)__builtin_ctzll(m);
-#else
-    uint32_t i = 0;
-    while (!(m & 1u)) {
-        m >>= 1;
-        ++i;
-    }
-    return i;
-#endif
-}
-
-/* Index of the highest set bit of a non-zero mask. */
-static uint32_t highest_bit(uint64_t m) {
-#if defined(__GNUC__) || defined(__clang__)
-    return 63u - (uint32_t)__builtin_clzll(m);
-#else
-    uint32_t i = 0;
-    while (m >>= 1) ++i;
-    return i;
-#endif
-}
-
 /* Offsets of all keys of track u in block j: out[0] = 0, out[1 .. n] the extras. */
 static uint32_t block_offsets(const layout* L, const walk* w, uint32_t u, uint8_t out[64]) {
     uint32_t n = w->n[u], e;
     out[0] = 0;
     if (n * L->shift < L->block_len - 1u) {
         for (e = 0; e < n; ++e)
-            out[1 + e] = (uint8_t)read_bits(L->stream, w->tpos[u] + (uint64_t)e * L->shift, L->shift);
+            out[1 + e] = (uint8_t)mcd_read_bits(L->stream, w->tpos[u] + (uint64_t)e * L->shift, L->shift);
     } else {
         uint64_t mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
         for (e = 0; e < n; ++e) {
-            out[1 + e] = (uint8_t)(lowest_bit(mask) + 1u);
+            out[1 + e] = (uint8_t)(mcd_lowest_bit(mask) + 1u);
             mask &= mask - 1u;
         }
     }
@@ -379,11 +345,11 @@ static uint32_t key_offset(const layout* L, const walk* w, uint32_t u, uint32_t 
     uint64_t mask;
     if (k == 0) return 0;
     if (n * L->shift < L->block_len - 1u)
-        return read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
+        return mcd_read_bits(L->stream, w->tpos[u] + (uint64_t)(k - 1u) * L->shift, L->shift);
     mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u);
-    if (k == n) return highest_bit(mask) + 1u; /* the block's last key: no scan */
+    if (k == n) return mcd_highest_bit(mask) + 1u; /* the block's last key: no scan */
     while (--k) mask &= mask - 1u;
-    return lowest_bit(mask) + 1u;
+    return mcd_lowest_bit(mask) + 1u;
 }
 
 static void read_key(const layout* L, const walk* w, const track_state* ts, uint32_t u, uint32_t k,
@@ -400,7 +366,7 @@ static void read_key(const layout* L, const walk* w, const track_state* ts, uint
         return;
     }
     for (c = 0; c < ts->dims; ++c) {
-        uint32_t q = ts->bits[c] ? read_bits(L->stream, pos, ts->bits[c]) : 0u;
+        uint32_t q = ts->bits[c] ? mcd_read_bits(L->stream, pos, ts->bits[c]) : 0u;
         out[c] = ts->minimum[c] + (float)q * ts->step[c];
         pos += ts->bits[c];
     }
@@ -484,10 +450,10 @@ static void advance(const layout* L, views* s, uint32_t u) {
     if (k < w->n[u]) {
         uint32_t prev = (uint32_t)ts->t[2] - block_start(L, b); /* offset of key k */
         if (w->n[u] * L->shift < L->block_len - 1u) {
-            frame = block_start(L, b) + read_bits(L->stream, w->tpos[u] + (uint64_t)k * L->shift, L->shift);
+            frame = block_start(L, b) + mcd_read_bits(L->stream, w->tpos[u] + (uint64_t)k * L->shift, L->shift);
         } else {
             uint64_t mask = read_mask(L->stream, w->tpos[u], L->block_len - 1u) >> prev;
-            frame = block_start(L, b) + prev + 1u + lowest_bit(mask);
+            frame = block_start(L, b) + prev + 1u + mcd_lowest_bit(mask);
         }
         ++k;
     } else if (b + 1u < L->blocks) {
@@ -540,12 +506,9 @@ static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {
     }
     for (i = 0; i < L->nodes; ++i) {
         const uint8_t* e = L->node_table + (size_t)i * NODE_ENTRY;
-        const uint8_t* rec = v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
         node_plan* np = &s->plans[i];
         uint32_t ri = mcd_rd_u16(e + 2), ti = mcd_rd_u16(e + 4);
-        np->base.rotation[0] = np->base.rotation[1] = np->base.rotation[2] = 0.0f;
-        np->base.rotation[3] = 1.0f;
-        for (k = 0; k < 3; ++k) np->base.translation[k] = mcd_rd_f32(rec + 8 + 4 * k);
+        mcd_skel_rest(v->skeleton, i, &np->base);
         np->rot_track = -1;
         np->trans_track = -1;
         if (e[0] == 1)
@@ -584,8 +547,8 @@ static void track_value(const layout* L, views* s, uint32_t u, float x, float ou
     eval_track(ts, x, out);
 }
 
-static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                                void* scratch, int fresh) {
+static void spline_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                          int fresh) {
     layout L;
     views s;
     uint32_t i;
@@ -611,9 +574,7 @@ static mcd_result spline_sample(const mcd_clip_view* v, float x, uint32_t flags,
             out[i].translation[2] = val[2];
         }
     }
-    return MCD_OK;
 }
 
 const mcd_codec_ops mcd_codec_spline_ops = {
-    MCD_CODEC_SPLINE, 0x4E4C5053u /* "SPLN" */, spline_validate, NULL, NULL, spline_scratch_size,
-    spline_sample};
+    MCD_CODEC_SPLINE, 0x4E4C5053u /* "SPLN" */, 1u, NULL, spline_validate, spline_scratch_size, spline_sample};

@@ -5,9 +5,7 @@ static const mcd_codec_ops* const k_codecs[] = {
     &mcd_codec_spline_ops,
     &mcd_codec_neural_ops,
     &mcd_codec_rma_ops,
-    &mcd_codec_fkwavelet_ops,
     &mcd_codec_ikpredict_ops,
-    &mcd_codec_rmapca_ops,
 };
 
 const mcd_codec_ops* mcd_find_codec(uint32_t codec) {
@@ -22,9 +20,4 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind) {
     for (i = 0; i < sizeof k_codecs / sizeof k_codecs[0]; ++i)
         if (k_codecs[i]->section_kind == section_kind) return k_codecs[i];
     return NULL;
-}
-
-uint32_t mcd_codec_section_version(uint32_t codec) {
-    /* NEUR 2: windowed networks. NEUR 1 (one network per clip) was never released. */
-    return codec == MCD_CODEC_NEURAL ? 2u : 1u;
 }

@@ -20,17 +20,9 @@
 #define MAX_STEP 1000.0f  /* |offset| ≤ step × (127 + 8 × 1023) stays below 1e7 */
 #define MAX_BLEND 1000.0f /* frames */
 
-static uint32_t align4(uint32_t x) {
-    return (x + 3u) & ~3u;
-}
-
 /* Bytes of nibble deltas of a segment of `length` frames: 3 per frame after the first. */
 static uint32_t delta_bytes(uint32_t length) {
     return (3u * (length - 1u) + 1u) / 2u;
-}
-
-static int32_t parent_of(const uint8_t* skeleton, uint32_t node) {
-    return mcd_rd_i32(skeleton + 16 + (size_t)node * MCD_SKEL_NODE_SIZE);
 }
 
 /* Bytes of the offset caches at the start of the contact scratch (offset_cache is 24 bytes). */
@@ -83,7 +75,7 @@ static mcd_result check_block(const mcd_asset* a, uint32_t clip, const uint8_t* 
         /* The node needs `chain` ancestors for its solver. */
         p = (int32_t)node;
         for (j = 0; j < chain; ++j) {
-            p = parent_of(skel, (uint32_t)p);
+            p = mcd_skel_parent(skel, (uint32_t)p);
             if (p < 0) return MCD_ERROR_MALFORMED;
         }
         if (first != expect_seg || count < 1 || (uint64_t)first + count > segments) return MCD_ERROR_MALFORMED;
@@ -106,10 +98,10 @@ static mcd_result check_block(const mcd_asset* a, uint32_t clip, const uint8_t* 
     }
     if (expect_seg != segments) return MCD_ERROR_MALFORMED;
     end = deltas_base + expect_delta;
-    if (align4(end) > avail) return MCD_ERROR_MALFORMED;
-    for (k = end; k < align4(end); ++k)
+    if ((uint32_t)mcd_align4(end) > avail) return MCD_ERROR_MALFORMED;
+    for (k = end; k < (uint32_t)mcd_align4(end); ++k)
         if (blk[k] != 0) return MCD_ERROR_MALFORMED;
-    *out_size = align4(end);
+    *out_size = (uint32_t)mcd_align4(end);
     return MCD_OK;
 }
 
@@ -136,8 +128,6 @@ mcd_result mcd_contacts_validate(const mcd_asset* a, const uint8_t* s, uint32_t 
 }
 
 /* ---------------------------------------------------------------- small double math */
-typedef struct dq { double x, y, z, w; } dq;
-
 static void v_sub(const double a[3], const double b[3], double o[3]) {
     o[0] = a[0] - b[0]; o[1] = a[1] - b[1]; o[2] = a[2] - b[2];
 }
@@ -152,51 +142,28 @@ static double v_len(const double a[3]) {
     return sqrt(v_dot(a, a));
 }
 
-static dq dq_mul(dq a, dq b) {
-    dq r;
-    r.x = a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y;
-    r.y = a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x;
-    r.z = a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w;
-    r.w = a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z;
-    return r;
-}
-static dq dq_identity(void) {
-    dq q = {0.0, 0.0, 0.0, 1.0};
-    return q;
-}
 /* Rotation by |v| radians about v (identity for a zero vector). */
-static dq dq_from_rotvec(const double v[3]) {
+static mcd_dquat dq_from_rotvec(const double v[3]) {
     double angle = v_len(v), s;
-    dq q;
-    if (!(angle > 1e-300)) return dq_identity();
+    mcd_dquat q;
+    if (!(angle > 1e-300)) return mcd_dq_identity();
     s = sin(0.5 * angle) / angle;
     q.x = v[0] * s; q.y = v[1] * s; q.z = v[2] * s; q.w = cos(0.5 * angle);
     return q;
 }
-static void dq_rotate(dq q, const double v[3], double o[3]) {
-    double t[3], u[3], qv[3];
-    qv[0] = q.x; qv[1] = q.y; qv[2] = q.z;
-    v_cross(qv, v, t);
-    t[0] *= 2.0; t[1] *= 2.0; t[2] *= 2.0;
-    v_cross(qv, t, u);
-    o[0] = v[0] + q.w * t[0] + u[0];
-    o[1] = v[1] + q.w * t[1] + u[1];
-    o[2] = v[2] + q.w * t[2] + u[2];
-}
 /* Any unit vector perpendicular to unit u. */
 static void perpendicular(const double u[3], double o[3]) {
     double axis[3] = {0.0, 0.0, 0.0}, n;
-    int k = fabs(u[0]) < fabs(u[1]) ? (fabs(u[0]) < fabs(u[2]) ? 0 : 2) : (fabs(u[1]) < fabs(u[2]) ? 1 : 2);
-    axis[k] = 1.0;
+    axis[mcd_least_axis(u)] = 1.0;
     v_cross(u, axis, o);
     n = v_len(o);
     o[0] /= n; o[1] /= n; o[2] /= n;
 }
 /* Shortest rotation taking direction u onto direction v (identity if either is ~zero). */
-static dq dq_arc(const double u_in[3], const double v_in[3]) {
+static mcd_dquat dq_arc(const double u_in[3], const double v_in[3]) {
     double lu = v_len(u_in), lv = v_len(v_in), u[3], v[3], c[3], d, n;
-    dq q;
-    if (!(lu > 1e-300) || !(lv > 1e-300)) return dq_identity();
+    mcd_dquat q;
+    if (!(lu > 1e-300) || !(lv > 1e-300)) return mcd_dq_identity();
     u[0] = u_in[0] / lu; u[1] = u_in[1] / lu; u[2] = u_in[2] / lu;
     v[0] = v_in[0] / lv; v[1] = v_in[1] / lv; v[2] = v_in[2] / lv;
     d = v_dot(u, v);
@@ -211,13 +178,6 @@ static dq dq_arc(const double u_in[3], const double v_in[3]) {
     q.x /= n; q.y /= n; q.z /= n; q.w /= n;
     return q;
 }
-static mcd_quat to_quat(dq q) {
-    mcd_quat r;
-    double n = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
-    if (!(n > 0.0)) n = 1.0, q = dq_identity();
-    r.x = (float)(q.x / n); r.y = (float)(q.y / n); r.z = (float)(q.z / n); r.w = (float)(q.w / n);
-    return r;
-}
 static void load3(const float f[3], double d[3]) {
     d[0] = f[0]; d[1] = f[1]; d[2] = f[2];
 }
@@ -228,14 +188,14 @@ void mcd_ik_two_bone(const float a_f[3], const float b_f[3], const float c_f[3],
                      mcd_quat* db) {
     double a[3], b[3], c[3], t[3], u[3], v[3], n[3], at[3], c2[3], ac2[3], vr[3];
     double l1, l2, d, lo, hi, cos_now, cos_want, nl;
-    dq qb = dq_identity(), qa;
+    mcd_dquat qb = mcd_dq_identity(), qa;
     load3(a_f, a); load3(b_f, b); load3(c_f, c); load3(t_f, t);
     v_sub(a, b, u); /* knee -> hip */
     v_sub(c, b, v); /* knee -> ankle */
     v_sub(t, a, at);
     l1 = v_len(u);
     l2 = v_len(v);
-    *da = to_quat(dq_identity());
+    *da = mcd_dq_to_quat(mcd_dq_identity());
     *db = *da;
     if (!(l1 > 1e-12) || !(l2 > 1e-12)) return; /* a zero-length bone has no angle to solve */
     /* Reachable distances from the hip; outside them the limb is straight (or folded). */
@@ -269,13 +229,13 @@ void mcd_ik_two_bone(const float a_f[3], const float b_f[3], const float c_f[3],
         rv[0] = n[0] * delta; rv[1] = n[1] * delta; rv[2] = n[2] * delta;
         qb = dq_from_rotvec(rv);
     }
-    dq_rotate(qb, v, vr);
+    mcd_dq_rotate(qb, v, vr);
     c2[0] = b[0] + vr[0]; c2[1] = b[1] + vr[1]; c2[2] = b[2] + vr[2];
     /* Then swing the whole limb about the hip so the ankle points at the target. */
     v_sub(c2, a, ac2);
     qa = dq_arc(ac2, at);
-    *da = to_quat(qa);
-    *db = to_quat(qb);
+    *da = mcd_dq_to_quat(qa);
+    *db = mcd_dq_to_quat(qb);
 }
 
 /* Solve (A + λ²I) y = r for symmetric 3×3 A by Cramer's rule; the damping keeps it regular. */
@@ -300,12 +260,12 @@ static void solve3(double m[3][3], const double r[3], double y[3]) {
 void mcd_ik_dls(uint32_t count, const float joints[][3], const float e_f[3], const float t_f[3], mcd_quat* d,
                 float e_out[3]) {
     double p[MCD_CONTACTS_MAX_CHAIN][3], e[3], t[3], err[3];
-    dq acc[MCD_CONTACTS_MAX_CHAIN];
+    mcd_dquat acc[MCD_CONTACTS_MAX_CHAIN];
     uint32_t j, k, it;
     if (count > MCD_CONTACTS_MAX_CHAIN) count = MCD_CONTACTS_MAX_CHAIN;
     for (j = 0; j < count; ++j) {
         load3(joints[j], p[j]);
-        acc[j] = dq_identity();
+        acc[j] = mcd_dq_identity();
     }
     load3(e_f, e);
     load3(t_f, t);
@@ -342,33 +302,28 @@ void mcd_ik_dls(uint32_t count, const float joints[][3], const float e_f[3], con
         if (biggest > 0.5) scale = 0.5 / biggest;
         for (j = 0; j < count; ++j) {
             double rv[3], rel[3], out[3];
-            dq q;
+            mcd_dquat q;
             uint32_t i;
             rv[0] = theta[j][0] * scale; rv[1] = theta[j][1] * scale; rv[2] = theta[j][2] * scale;
             q = dq_from_rotvec(rv);
             /* The rotation about joint j carries every joint after it and the effector. */
             for (i = j + 1; i < count; ++i) {
                 v_sub(p[i], p[j], rel);
-                dq_rotate(q, rel, out);
+                mcd_dq_rotate(q, rel, out);
                 p[i][0] = p[j][0] + out[0]; p[i][1] = p[j][1] + out[1]; p[i][2] = p[j][2] + out[2];
             }
             v_sub(e, p[j], rel);
-            dq_rotate(q, rel, out);
+            mcd_dq_rotate(q, rel, out);
             e[0] = p[j][0] + out[0]; e[1] = p[j][1] + out[1]; e[2] = p[j][2] + out[2];
-            for (i = j; i < count; ++i) acc[i] = dq_mul(q, acc[i]);
+            for (i = j; i < count; ++i) acc[i] = mcd_dq_mul(q, acc[i]);
         }
     }
-    for (j = 0; j < count; ++j) d[j] = to_quat(acc[j]);
+    for (j = 0; j < count; ++j) d[j] = mcd_dq_to_quat(acc[j]);
     e_out[0] = (float)e[0]; e_out[1] = (float)e[1]; e_out[2] = (float)e[2];
 }
 
 /* ---------------------------------------------------------------- sampling */
 
-static mcd_quat rot_of(const mcd_transform* t) {
-    mcd_quat q;
-    q.x = t->rotation[0]; q.y = t->rotation[1]; q.z = t->rotation[2]; q.w = t->rotation[3];
-    return q;
-}
 static void set_rot(mcd_transform* t, mcd_quat q) {
     float n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
     if (!(n > 0.0f) || !mcd_finite(n)) {
@@ -376,11 +331,6 @@ static void set_rot(mcd_transform* t, mcd_quat q) {
     }
     t->rotation[0] = q.x / n; t->rotation[1] = q.y / n; t->rotation[2] = q.z / n; t->rotation[3] = q.w / n;
 }
-static mcd_quat qconj(mcd_quat q) {
-    q.x = -q.x; q.y = -q.y; q.z = -q.z;
-    return q;
-}
-
 /* World transforms from local ones (the same arithmetic as mcd_sample's MCD_SAMPLE_WORLD) of
  * the nodes in `need` (a set closed under parents: the paths from the roots to the effectors,
  * all the contact pass reads). With first > 0, only the part of it under node `first`, after
@@ -393,22 +343,14 @@ static void forward(const uint8_t* skeleton, uint32_t nodes, const mcd_transform
     for (i = first; i < nodes; ++i) {
         int32_t parent;
         if (!(need[i >> 3] & (1u << (i & 7u)))) continue;
-        parent = parent_of(skeleton, i);
+        parent = mcd_skel_parent(skeleton, i);
         if (first > 0 && i != first && (parent < 0 || !(moved[(uint32_t)parent >> 3] & (1u << ((uint32_t)parent & 7u)))))
             continue;
         moved[i >> 3] |= (uint8_t)(1u << (i & 7u));
-        world[i] = local[i];
-        if (parent >= 0) {
-            const mcd_transform* p = &world[parent];
-            mcd_quat pq = rot_of(p), wq;
-            float t[3];
-            mcd_qrotate(pq, local[i].translation, t);
-            wq = mcd_qmul(pq, rot_of(&local[i]));
-            world[i].translation[0] = p->translation[0] + t[0];
-            world[i].translation[1] = p->translation[1] + t[1];
-            world[i].translation[2] = p->translation[2] + t[2];
-            world[i].rotation[0] = wq.x; world[i].rotation[1] = wq.y; world[i].rotation[2] = wq.z; world[i].rotation[3] = wq.w;
-        }
+        if (parent >= 0)
+            mcd_compose(&world[parent], &local[i], &world[i]);
+        else
+            world[i] = local[i];
     }
 }
 
@@ -551,11 +493,11 @@ static void write_chain(const uint8_t* skeleton, const mcd_transform* world, mcd
                         const uint32_t* chain, uint32_t count, const mcd_quat* d, uint32_t effector) {
     mcd_quat nw[MCD_CONTACTS_MAX_CHAIN];
     uint32_t j;
-    int32_t p0 = parent_of(skeleton, chain[0]);
-    for (j = 0; j < count; ++j) nw[j] = mcd_qmul(d[j], rot_of(&world[chain[j]]));
-    set_rot(&local[chain[0]], p0 >= 0 ? mcd_qmul(qconj(rot_of(&world[p0])), nw[0]) : nw[0]);
-    for (j = 1; j < count; ++j) set_rot(&local[chain[j]], mcd_qmul(qconj(nw[j - 1]), nw[j]));
-    set_rot(&local[effector], mcd_qmul(qconj(nw[count - 1]), rot_of(&world[effector])));
+    int32_t p0 = mcd_skel_parent(skeleton, chain[0]);
+    for (j = 0; j < count; ++j) nw[j] = mcd_qmul(d[j], mcd_quat_of(&world[chain[j]]));
+    set_rot(&local[chain[0]], p0 >= 0 ? mcd_qmul(mcd_qconj(mcd_quat_of(&world[p0])), nw[0]) : nw[0]);
+    for (j = 1; j < count; ++j) set_rot(&local[chain[j]], mcd_qmul(mcd_qconj(nw[j - 1]), nw[j]));
+    set_rot(&local[effector], mcd_qmul(mcd_qconj(nw[count - 1]), mcd_quat_of(&world[effector])));
 }
 
 void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mcd_clip_view* view, float x,
@@ -595,7 +537,7 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
         if (weight[k] <= 0.0f) continue;
         while (n >= 0 && !(need[(uint32_t)n >> 3] & (1u << ((uint32_t)n & 7u)))) {
             need[(uint32_t)n >> 3] |= (uint8_t)(1u << ((uint32_t)n & 7u));
-            n = parent_of(view->skeleton, (uint32_t)n);
+            n = mcd_skel_parent(view->skeleton, (uint32_t)n);
         }
     }
     forward(view->skeleton, view->node_count, local, world, need, 0);
@@ -616,13 +558,13 @@ void mcd_contacts_apply(const uint8_t* s, uint32_t size, uint32_t clip, const mc
         if (weight[k] <= 0.0f) continue;
         /* A toe whose ankle is held by its own contact turns only the foot, so the ankle stays. */
         if (solver == MCD_CONTACTS_SOLVER_DLS) {
-            int32_t parent = parent_of(view->skeleton, node);
+            int32_t parent = mcd_skel_parent(view->skeleton, node);
             for (m = 0; m < k; ++m)
                 if ((int32_t)mcd_rd_u16(blk + BLOCK_HEADER + (size_t)m * EFFECTOR_SIZE) == parent && weight[m] > 0.0f)
                     chain_len = 1;
         }
         for (j = chain_len; j-- > 0;) {
-            p = parent_of(view->skeleton, (uint32_t)p);
+            p = mcd_skel_parent(view->skeleton, (uint32_t)p);
             chain[j] = (uint32_t)p;
         }
         if (solver == MCD_CONTACTS_SOLVER_TWO_BONE) {

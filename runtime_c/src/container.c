@@ -1,10 +1,11 @@
-/* The container: header, section table, skeletons and clip directory (docs/FORMAT.md).
- * Validation is written for hostile input: every size is checked before it is used, and all
- * arithmetic on sizes is done in 64 bits so it cannot wrap. */
+/* The container: header, section table, skeletons and clip directory (docs/FORMAT.md), and the
+ * queries on an opened asset. Validation is written for hostile input: every size is checked
+ * before it is used, and all arithmetic on sizes is done in 64 bits so it cannot wrap. */
 #include <string.h>
 
 #include "contacts.h"
 #include "internal.h"
+#include "offline.h"
 
 static const uint8_t k_magic[8] = {0x89, 0x4D, 0x43, 0x44, 0x0D, 0x0A, 0x1A, 0x0A};
 
@@ -51,7 +52,7 @@ const char* mcd_result_string(mcd_result result) {
 /* ---------------------------------------------------------------- header + section table */
 
 /* Checks the header and, when `table_too`, the section table layout. Fills the section
- * count. Used by validate and by mcd_resident_size. */
+ * count. */
 static mcd_result check_header(const uint8_t* d, size_t size, uint32_t* out_sections) {
     uint32_t total, count;
     if (size < MCD_HEADER_SIZE) return memcmp(d, k_magic, size < 8 ? size : 8) == 0 ? MCD_ERROR_TRUNCATED : MCD_ERROR_BAD_MAGIC;
@@ -98,56 +99,6 @@ static mcd_result check_section_table(const uint8_t* d, uint32_t count) {
     return MCD_OK;
 }
 
-/* ---------------------------------------------------------------- strings */
-
-/* A non-empty NUL-terminated string starting at `off` inside block [0, size). */
-static int valid_string(const uint8_t* block, uint32_t size, uint32_t off) {
-    uint32_t i;
-    if (off >= size || block[off] == 0) return 0;
-    for (i = off; i < size; ++i)
-        if (block[i] == 0) return 1;
-    return 0;
-}
-
-/* ---------------------------------------------------------------- SKEL */
-
-static mcd_result check_skeleton(const uint8_t* s, uint32_t size) {
-    uint32_t n, i, strings;
-    float cm;
-    if (size < 16) return MCD_ERROR_MALFORMED;
-    n = mcd_rd_u32(s);
-    if (n < 1 || n > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(s + 4) != 0) return MCD_ERROR_MALFORMED;
-    cm = mcd_rd_f32(s + 8);
-    if (!mcd_finite(cm) || !(cm > 0.0f)) return MCD_ERROR_MALFORMED;
-    strings = mcd_rd_u32(s + 12);
-    if ((uint64_t)strings != 16u + (uint64_t)n * MCD_SKEL_NODE_SIZE || strings > size) return MCD_ERROR_MALFORMED;
-    for (i = 0; i < n; ++i) {
-        const uint8_t* r = s + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
-        int32_t parent = mcd_rd_i32(r);
-        uint32_t kind = r[20], channels = r[21], c, k, seen = 0;
-        if (parent < -1 || parent >= (int32_t)i) return MCD_ERROR_MALFORMED;
-        if (parent >= 0 && s[16 + (size_t)parent * MCD_SKEL_NODE_SIZE + 20] == 1) return MCD_ERROR_MALFORMED;
-        if (!valid_string(s + strings, size - strings, mcd_rd_u32(r + 4))) return MCD_ERROR_MALFORMED;
-        for (k = 0; k < 3; ++k) {
-            float o = mcd_rd_f32(r + 8 + 4 * k);
-            if (!mcd_finite(o) || o > MCD_MAX_ABS_VALUE || o < -MCD_MAX_ABS_VALUE) return MCD_ERROR_MALFORMED;
-        }
-        if (kind > 1 || channels > 6 || (kind == 1 && channels != 0)) return MCD_ERROR_MALFORMED;
-        for (k = 0; k < 6; ++k) {
-            c = r[22 + k];
-            if (k < channels) {
-                if (c > 5 || (seen & (1u << c))) return MCD_ERROR_MALFORMED;
-                seen |= 1u << c;
-            } else if (c != 0xFF) {
-                return MCD_ERROR_MALFORMED;
-            }
-        }
-        if (mcd_rd_u32(r + 28) != 0) return MCD_ERROR_MALFORMED;
-    }
-    return MCD_OK;
-}
-
 /* ---------------------------------------------------------------- validation */
 
 typedef struct table_scan {
@@ -160,7 +111,9 @@ typedef struct table_scan {
     uint32_t codec_sections[MCD_MAX_CODEC_ID + 1]; /* per codec id: section index + 1, 0 = none */
 } table_scan;
 
-static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t) {
+/* Section kinds and versions; with `full`, every SKEL and each codec section as a whole is
+ * checked too (a prevalidated open reads only what it needs). */
+static mcd_result scan_sections(const uint8_t* d, uint32_t count, int full, table_scan* t) {
     uint32_t i;
     memset(t, 0, sizeof *t);
     for (i = 0; i < count; ++i) {
@@ -169,13 +122,13 @@ static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t)
         uint32_t off = mcd_rd_u32(e + 8), sz = mcd_rd_u32(e + 12);
         mcd_result r;
         if (kind == KIND_SKEL) {
-            if (version != 1) return MCD_ERROR_UNSUPPORTED;
-            r = check_skeleton(d + off, sz);
+            if (version != 2) return MCD_ERROR_UNSUPPORTED;
+            r = mcd_skel_check(d + off, sz);
             if (r != MCD_OK) return r;
             if (t->skeleton_count < 16) t->skeleton_offsets[t->skeleton_count] = off;
             t->skeleton_count++;
         } else if (kind == KIND_CLIP) {
-            if (version != 1) return MCD_ERROR_UNSUPPORTED;
+            if (version != 2) return MCD_ERROR_UNSUPPORTED;
             t->clip_section = i;
             t->clip_count_sections++;
         } else if (kind == KIND_META) {
@@ -189,28 +142,19 @@ static mcd_result scan_sections(const uint8_t* d, uint32_t count, table_scan* t)
         } else {
             const mcd_codec_ops* ops = mcd_find_codec_by_kind(kind);
             if (ops) {
-                /* One section per codec: its resident block is found by codec id. */
+                /* One section per codec: clips name it by index, the format keeps it unique. */
                 if (t->codec_sections[ops->codec]) return MCD_ERROR_MALFORMED;
+                if (version != ops->section_version) return MCD_ERROR_UNSUPPORTED;
                 t->codec_sections[ops->codec] = i + 1;
+                if (full && ops->validate_section) {
+                    r = ops->validate_section(d + off, sz);
+                    if (r != MCD_OK) return r;
+                }
             }
         }
     }
     if (t->skeleton_count < 1 || t->clip_count_sections != 1 || t->meta_count > 1) return MCD_ERROR_MALFORMED;
     return MCD_OK;
-}
-
-uint32_t mcd_skeleton_offset(const mcd_asset* asset, uint32_t index) {
-    uint32_t i, seen = 0;
-    if (index >= asset->skeleton_count) return 0;
-    if (index < 16) return asset->skeleton_offsets[index];
-    for (i = 0; i < asset->section_count; ++i) {
-        const uint8_t* e = asset->data + asset->section_table + (size_t)i * MCD_SECTION_ENTRY_SIZE;
-        if (mcd_rd_u32(e) == KIND_SKEL) {
-            if (seen == index) return mcd_rd_u32(e + 8);
-            seen++;
-        }
-    }
-    return 0;
 }
 
 /* Resolve a clip record against its skeleton and codec section. Checks everything the clip
@@ -228,15 +172,14 @@ static mcd_result resolve_clip(const mcd_asset* a, uint32_t clip, mcd_clip_view*
     if (!ops) return MCD_ERROR_UNSUPPORTED;
     e = a->data + a->section_table + (size_t)section * MCD_SECTION_ENTRY_SIZE;
     if (mcd_rd_u32(e) != ops->section_kind) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(e + 4) != mcd_codec_section_version(codec)) return MCD_ERROR_UNSUPPORTED;
+    if (mcd_rd_u32(e + 4) != ops->section_version) return MCD_ERROR_UNSUPPORTED;
     if ((poff & 3u) != 0 || (uint64_t)poff + psize > mcd_rd_u32(e + 12)) return MCD_ERROR_MALFORMED;
     skel_off = mcd_skeleton_offset(a, skel);
     v->section = a->data + mcd_rd_u32(e + 8);
     v->section_size = mcd_rd_u32(e + 12);
     v->payload = v->section + poff;
     v->payload_size = psize;
-    v->resident = (codec <= MCD_MAX_CODEC_ID && a->resident && a->resident_offsets[codec] != UINT32_MAX)
-                      ? a->resident + a->resident_offsets[codec] : NULL;
+    v->scratch_need = mcd_rd_u32(r + 40);
     v->frame_count = mcd_rd_u32(r + 24);
     v->frame_rate = mcd_rd_f32(r + 28);
     v->skeleton = a->data + skel_off;
@@ -251,13 +194,16 @@ mcd_result mcd_clip_view_get(const mcd_asset* asset, uint32_t clip, mcd_clip_vie
     return resolve_clip(asset, clip, out, out_ops);
 }
 
-static mcd_result check_clips(mcd_asset* a, uint32_t clip_section) {
+/* The largest clip scratch the format allows: far above any real skeleton's need. */
+#define MAX_CLIP_SCRATCH 0x4000000u
+
+/* The clip directory; with `full`, every payload through its codec as well. */
+static mcd_result check_clips(mcd_asset* a, uint32_t clip_section, int full) {
     const uint8_t* d = a->data;
     const uint8_t* e = d + a->section_table + (size_t)clip_section * MCD_SECTION_ENTRY_SIZE;
     uint32_t off = mcd_rd_u32(e + 8), size = mcd_rd_u32(e + 12);
     const uint8_t* s = d + off;
-    uint32_t count, strings, i;
-    size_t scratch = 0;
+    uint32_t count, strings, i, scratch = 0;
     if (size < 8) return MCD_ERROR_MALFORMED;
     count = mcd_rd_u32(s);
     strings = mcd_rd_u32(s + 4);
@@ -272,43 +218,47 @@ static mcd_result check_clips(mcd_asset* a, uint32_t clip_section) {
         mcd_clip_view v;
         const mcd_codec_ops* ops;
         float rate = mcd_rd_f32(r + 28), duration = mcd_rd_f32(r + 32), expect, tol;
+        uint32_t need = mcd_rd_u32(r + 40);
         mcd_result res;
-        size_t need;
-        if (!valid_string(d + a->clip_strings, a->clip_strings_size, mcd_rd_u32(r))) return MCD_ERROR_MALFORMED;
+        if (!mcd_valid_name(d + a->clip_strings, a->clip_strings_size, mcd_rd_u32(r), 1)) return MCD_ERROR_MALFORMED;
         if (mcd_rd_u32(r + 24) < 1) return MCD_ERROR_MALFORMED;
         if (!mcd_finite(rate) || !(rate > 0.0f) || rate > MCD_MAX_FRAME_RATE) return MCD_ERROR_MALFORMED;
         expect = (float)((double)(mcd_rd_u32(r + 24) - 1u) / (double)rate);
         tol = 1e-4f * (expect > 1.0f ? expect : 1.0f);
         /* expect overflows to inf for a tiny rate: then no finite duration matches (and tol is inf). */
         if (!mcd_finite(expect) || !mcd_finite(duration) || duration < expect - tol || duration > expect + tol) return MCD_ERROR_MALFORMED;
-        if (mcd_rd_u32(r + 36) != 0 || mcd_rd_u32(r + 40) != 0 || mcd_rd_u32(r + 44) != 0) return MCD_ERROR_MALFORMED;
+        if (mcd_rd_u32(r + 36) != 0 || mcd_rd_u32(r + 44) != 0) return MCD_ERROR_MALFORMED;
+        if ((need & 15u) != 0 || need > MAX_CLIP_SCRATCH) return MCD_ERROR_MALFORMED;
         res = resolve_clip(a, i, &v, &ops);
         if (res != MCD_OK) return res;
-        res = ops->validate(&v);
-        if (res != MCD_OK) return res;
-        need = ops->scratch_size(&v);
+        if (full) {
+            res = ops->validate(&v);
+            if (res != MCD_OK) return res;
+            /* The record states what the codec needs, so a prevalidated open need not ask it. */
+            if (ops->scratch_size(&v) != need) return MCD_ERROR_MALFORMED;
+        }
         if (need > scratch) scratch = need;
     }
-    a->scratch_size = (uint32_t)(MCD_SCRATCH_HEADER_SIZE + scratch);
+    a->scratch_size = MCD_SCRATCH_HEADER_SIZE + a->contacts_scratch + scratch;
     return MCD_OK;
 }
 
-static mcd_result validate_into(const void* data, size_t size, uint32_t flags, mcd_asset* a) {
+static mcd_result validate_into(const void* data, size_t size, uint32_t flags, int full, mcd_asset* a) {
     const uint8_t* d = (const uint8_t*)data;
     uint32_t count, i;
     table_scan t;
     mcd_result r;
-    if (!data || (flags & ~MCD_VALIDATE_SKIP_CHECKSUM) != 0) return MCD_ERROR_INVALID_ARGUMENT;
+    if (!data) return MCD_ERROR_INVALID_ARGUMENT;
     r = check_header(d, size, &count);
     if (r != MCD_OK) return r;
-    if (!(flags & MCD_VALIDATE_SKIP_CHECKSUM) && mcd_crc32(d + 24, (size_t)mcd_rd_u32(d + 16) - 24u) != mcd_rd_u32(d + 20))
+    if (full && !(flags & MCD_VALIDATE_SKIP_CHECKSUM) &&
+        mcd_crc32(d + 24, (size_t)mcd_rd_u32(d + 16) - 24u) != mcd_rd_u32(d + 20))
         return MCD_ERROR_CHECKSUM;
     r = check_section_table(d, count);
     if (r != MCD_OK) return r;
-    r = scan_sections(d, count, &t);
+    r = scan_sections(d, count, full, &t);
     if (r != MCD_OK) return r;
     memset(a, 0, sizeof *a);
-    for (i = 0; i <= MCD_MAX_CODEC_ID && i < 8; ++i) a->resident_offsets[i] = UINT32_MAX;
     a->data = d;
     a->size = size;
     a->section_table = MCD_HEADER_SIZE;
@@ -319,105 +269,32 @@ static mcd_result validate_into(const void* data, size_t size, uint32_t flags, m
         uint32_t n = mcd_rd_u32(d + mcd_skeleton_offset(a, i));
         if (n > a->max_nodes) a->max_nodes = n;
     }
-    for (i = 0; i <= MCD_MAX_CODEC_ID && i < 8; ++i) a->codec_sections[i] = t.codec_sections[i];
-    r = check_clips(a, t.clip_section);
-    if (r != MCD_OK || !t.contacts_section) return r;
-    {
+    if (t.contacts_section) {
         const uint8_t* e = d + MCD_HEADER_SIZE + (size_t)(t.contacts_section - 1u) * MCD_SECTION_ENTRY_SIZE;
-        r = mcd_contacts_validate(a, d + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12));
-        if (r != MCD_OK) return r;
-        /* The contact pass keeps a world pose after the codec's scratch area. */
-        a->scratch_size += (uint32_t)mcd_contacts_scratch_size(a->max_nodes);
+        a->contacts = mcd_rd_u32(e + 8);
+        a->contacts_size = mcd_rd_u32(e + 12);
+        /* The contact pass keeps a world pose between the header and the codec's area. */
+        a->contacts_scratch = (uint32_t)mcd_contacts_scratch_size(a->max_nodes);
     }
+    r = check_clips(a, t.clip_section, full);
+    if (r != MCD_OK) return r;
+    /* The contact section refers to clips, so it is checked after the directory. */
+    if (full && a->contacts) return mcd_contacts_validate(a, d + a->contacts, a->contacts_size);
     return MCD_OK;
-}
-
-uint32_t mcd_contacts_section(const mcd_asset* asset, uint32_t* out_size) {
-    uint32_t i;
-    for (i = 0; i < asset->section_count; ++i) {
-        const uint8_t* e = asset->data + asset->section_table + (size_t)i * MCD_SECTION_ENTRY_SIZE;
-        if (mcd_rd_u32(e) == KIND_CNTC) {
-            *out_size = mcd_rd_u32(e + 12);
-            return mcd_rd_u32(e + 8);
-        }
-    }
-    *out_size = 0;
-    return 0;
-}
-
-/* Resident layout: one 16-aligned block per codec section that asks for one, in codec id
- * order. Fills asset->resident_offsets (relative) and returns the total. */
-static size_t resident_layout(mcd_asset* a) {
-    size_t total = 0;
-    uint32_t codec;
-    for (codec = 0; codec <= MCD_MAX_CODEC_ID && codec < 8; ++codec) {
-        uint32_t section = a->codec_sections[codec];
-        const mcd_codec_ops* ops = mcd_find_codec(codec);
-        const uint8_t* e;
-        size_t need;
-        a->resident_offsets[codec] = UINT32_MAX;
-        if (!section || !ops || !ops->resident_size) continue;
-        e = a->data + a->section_table + (size_t)(section - 1u) * MCD_SECTION_ENTRY_SIZE;
-        need = ops->resident_size(a->data + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12));
-        if (need == 0) continue;
-        a->resident_offsets[codec] = (uint32_t)total;
-        total += (need + 15u) & ~(size_t)15u;
-    }
-    return total;
 }
 
 mcd_result mcd_validate(const void* data, size_t size, uint32_t flags) {
     mcd_asset scratch_asset;
-    return validate_into(data, size, flags, &scratch_asset);
+    if ((flags & ~MCD_VALIDATE_SKIP_CHECKSUM) != 0) return MCD_ERROR_INVALID_ARGUMENT;
+    return validate_into(data, size, flags, 1, &scratch_asset);
 }
 
-mcd_result mcd_resident_size(const void* data, size_t size, uint32_t flags, size_t* out_size) {
+mcd_result mcd_open(const void* data, size_t size, uint32_t flags, mcd_asset* out_asset) {
     mcd_asset a;
     mcd_result r;
-    if (!out_size) return MCD_ERROR_INVALID_ARGUMENT;
-    r = validate_into(data, size, flags, &a);
+    if (!out_asset || (flags & ~(MCD_VALIDATE_SKIP_CHECKSUM | MCD_OPEN_PREVALIDATED)) != 0) return MCD_ERROR_INVALID_ARGUMENT;
+    r = validate_into(data, size, flags, !(flags & MCD_OPEN_PREVALIDATED), &a);
     if (r != MCD_OK) return r;
-    *out_size = resident_layout(&a);
-    return MCD_OK;
-}
-
-mcd_result mcd_open(const void* data, size_t size, uint32_t flags, void* resident,
-                    size_t resident_size, mcd_asset* out_asset) {
-    mcd_asset a;
-    mcd_result r;
-    size_t need;
-    uint32_t codec, i;
-    if (!out_asset) return MCD_ERROR_INVALID_ARGUMENT;
-    r = validate_into(data, size, flags, &a);
-    if (r != MCD_OK) return r;
-    need = resident_layout(&a);
-    if (need > 0) {
-        if (!resident) return MCD_ERROR_INVALID_ARGUMENT;
-        if (((uintptr_t)resident & 15u) != 0) return MCD_ERROR_INVALID_ARGUMENT;
-        if (resident_size < need) return MCD_ERROR_BUFFER_TOO_SMALL;
-        memset(resident, 0, need);
-        a.resident = (uint8_t*)resident;
-        a.resident_size = need;
-        for (codec = 0; codec <= MCD_MAX_CODEC_ID && codec < 8; ++codec) {
-            const mcd_codec_ops* ops = mcd_find_codec(codec);
-            const uint8_t* e;
-            if (a.resident_offsets[codec] == UINT32_MAX || !ops || !ops->open_section) continue;
-            e = a.data + a.section_table + (size_t)(a.codec_sections[codec] - 1u) * MCD_SECTION_ENTRY_SIZE;
-            r = ops->open_section(a.data + mcd_rd_u32(e + 8), mcd_rd_u32(e + 12), a.resident + a.resident_offsets[codec]);
-            if (r != MCD_OK) return r;
-        }
-        /* Second pass: what only the decoded data can show. */
-        for (i = 0; i < a.clip_count; ++i) {
-            mcd_clip_view v;
-            const mcd_codec_ops* ops;
-            r = mcd_clip_view_get(&a, i, &v, &ops);
-            if (r != MCD_OK) return r;
-            if (v.resident) {
-                r = ops->validate(&v);
-                if (r != MCD_OK) return r;
-            }
-        }
-    }
     *out_asset = a;
     return MCD_OK;
 }
@@ -444,6 +321,12 @@ mcd_result mcd_get_clip_info(const mcd_asset* asset, uint32_t clip, mcd_clip_inf
     out->frame_rate = mcd_rd_f32(r + 28);
     out->duration = mcd_rd_f32(r + 32);
     out->node_count = mcd_rd_u32(asset->data + mcd_skeleton_offset(asset, out->skeleton));
+    out->scratch_size = MCD_SCRATCH_HEADER_SIZE + asset->contacts_scratch + mcd_rd_u32(r + 40);
+    {
+        const uint8_t* e = asset->data + asset->section_table + (size_t)mcd_rd_u32(r + 12) * MCD_SECTION_ENTRY_SIZE;
+        out->data_offset = mcd_rd_u32(e + 8) + mcd_rd_u32(r + 16);
+        out->data_size = mcd_rd_u32(r + 20);
+    }
     return MCD_OK;
 }
 
@@ -477,13 +360,50 @@ mcd_result mcd_get_node_info(const mcd_asset* asset, uint32_t skeleton, uint32_t
     if (skeleton >= asset->skeleton_count) return MCD_ERROR_OUT_OF_RANGE;
     s = asset->data + mcd_skeleton_offset(asset, skeleton);
     if (node >= mcd_rd_u32(s)) return MCD_ERROR_OUT_OF_RANGE;
-    r = s + 16 + (size_t)node * MCD_SKEL_NODE_SIZE;
+    r = mcd_skel_record(s, node);
     out->name = (const char*)(s + mcd_rd_u32(s + 12) + mcd_rd_u32(r + 4));
     out->parent = mcd_rd_i32(r);
-    out->is_end_site = r[20];
-    for (k = 0; k < 3; ++k) out->rest_offset[k] = mcd_rd_f32(r + 8 + 4 * k);
-    out->channel_count = r[21];
-    for (k = 0; k < 6; ++k) out->channels[k] = r[22 + k];
+    out->kind = r[48];
+    for (k = 0; k < 3; ++k) out->rest_translation[k] = mcd_rd_f32(r + 8 + 4 * k);
+    for (k = 0; k < 4; ++k) out->rest_rotation[k] = mcd_rd_f32(r + 20 + 4 * k);
+    for (k = 0; k < 3; ++k) out->rest_scale[k] = mcd_rd_f32(r + 36 + 4 * k);
+    out->channel_count = r[49];
+    for (k = 0; k < 6; ++k) out->channels[k] = r[50 + k];
     out->reserved[0] = out->reserved[1] = 0;
+    return MCD_OK;
+}
+
+/* ---------------------------------------------------------------- encoder support */
+
+mcd_result mcd_offline_clip_scratch(uint32_t codec, const uint8_t* section, size_t section_size,
+                                    size_t payload_offset, size_t payload_size, const uint8_t* skeleton,
+                                    size_t skeleton_size, uint32_t frame_count, float frame_rate,
+                                    size_t* out_size) {
+    const mcd_codec_ops* ops = mcd_find_codec(codec);
+    mcd_clip_view v;
+    mcd_result r;
+    if (!section || !skeleton || !out_size || section_size > 0xFFFFFFFFu || skeleton_size > 0xFFFFFFFFu)
+        return MCD_ERROR_INVALID_ARGUMENT;
+    if (!ops) return MCD_ERROR_UNSUPPORTED;
+    if (payload_offset > section_size || payload_size > section_size - payload_offset || (payload_offset & 3u))
+        return MCD_ERROR_MALFORMED;
+    r = mcd_skel_check(skeleton, (uint32_t)skeleton_size);
+    if (r != MCD_OK) return r;
+    if (ops->validate_section) {
+        r = ops->validate_section(section, (uint32_t)section_size);
+        if (r != MCD_OK) return r;
+    }
+    memset(&v, 0, sizeof v);
+    v.section = section;
+    v.section_size = (uint32_t)section_size;
+    v.payload = section + payload_offset;
+    v.payload_size = (uint32_t)payload_size;
+    v.frame_count = frame_count;
+    v.frame_rate = frame_rate;
+    v.skeleton = skeleton;
+    v.node_count = mcd_rd_u32(skeleton);
+    r = ops->validate(&v);
+    if (r != MCD_OK) return r;
+    *out_size = ops->scratch_size(&v);
     return MCD_OK;
 }

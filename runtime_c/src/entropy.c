@@ -243,13 +243,12 @@ static inline int32_t dec_value(decoder* d, uint16_t* c) {
     return neg ? -(int32_t)m : (int32_t)m;
 }
 
-mcd_result mcd_entropy_decode(const uint8_t* in, size_t size, uint32_t channels, int32_t* values,
-                              uint32_t count) {
+/* Decode into values[], or only check the stream when values is NULL. */
+static mcd_result decode_stream(const uint8_t* in, size_t size, uint32_t channels, int32_t* values,
+                                uint32_t count) {
     uint16_t ctx[MCD_ENTROPY_MAX_CHANNELS * CTX_PER_CHANNEL];
     decoder d;
     uint32_t i, ch = 0;
-    if (channels < 1 || channels > MCD_ENTROPY_MAX_CHANNELS || (!in && size) || (!values && count))
-        return MCD_ERROR_INVALID_ARGUMENT;
     if (count == 0) return size == 0 ? MCD_OK : MCD_ERROR_MALFORMED;
     if (size < 4) return MCD_ERROR_MALFORMED;
     ctx_init(ctx, channels);
@@ -260,9 +259,22 @@ mcd_result mcd_entropy_decode(const uint8_t* in, size_t size, uint32_t channels,
     d.size = size;
     d.pos = 4;
     for (i = 0; i < count; ++i) {
-        values[i] = dec_value(&d, ctx + ch * CTX_PER_CHANNEL);
+        int32_t v = dec_value(&d, ctx + ch * CTX_PER_CHANNEL);
+        if (values) values[i] = v;
         if (++ch == channels) ch = 0;
         if (d.pos > size || d.bad) return MCD_ERROR_MALFORMED; /* ran out, or not a stream */
     }
     return d.pos == size && d.code == 0 ? MCD_OK : MCD_ERROR_MALFORMED;
+}
+
+mcd_result mcd_entropy_decode(const uint8_t* in, size_t size, uint32_t channels, int32_t* values,
+                              uint32_t count) {
+    if (channels < 1 || channels > MCD_ENTROPY_MAX_CHANNELS || (!in && size) || (!values && count))
+        return MCD_ERROR_INVALID_ARGUMENT;
+    return decode_stream(in, size, channels, values, count);
+}
+
+mcd_result mcd_entropy_check(const uint8_t* in, size_t size, uint32_t channels, uint32_t count) {
+    if (channels < 1 || channels > MCD_ENTROPY_MAX_CHANNELS || (!in && size)) return MCD_ERROR_INVALID_ARGUMENT;
+    return decode_stream(in, size, channels, NULL, count);
 }

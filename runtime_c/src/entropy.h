@@ -1,6 +1,6 @@
 /* The runtime's lossless back-end: an adaptive binary range coder over signed integers
- * (docs/FORMAT.md, "Entropy coder"). Codecs decode their sections with it once at mcd_open;
- * the Python encoder calls the same functions through the cffi binding, so both sides run one
+ * (docs/FORMAT.md, "Entropy coder"). Codecs decode their streams with it at sample time (in
+ * blocks small enough for the scratch); the Python encoder calls the same functions through the cffi binding, so both sides run one
  * implementation.
  *
  * Value i of a stream is coded with the statistics of channel i % channels, so interleaved
@@ -42,5 +42,10 @@ mcd_result mcd_entropy_encode(const int32_t* values, uint32_t count, uint32_t ch
  * On failure values[] holds unspecified (but in-range) numbers. */
 mcd_result mcd_entropy_decode(const uint8_t* in, size_t size, uint32_t channels, int32_t* values,
                               uint32_t count);
+
+/* Whether in[0 .. size) decodes to exactly `count` values with `channels` context sets, as
+ * mcd_entropy_decode would accept it, without storing them: lets mcd_validate check a
+ * stream that is decoded lazily at sample time. Same results as mcd_entropy_decode. */
+mcd_result mcd_entropy_check(const uint8_t* in, size_t size, uint32_t channels, uint32_t count);
 
 #endif /* MCD_ENTROPY_H */

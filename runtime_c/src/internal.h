@@ -14,8 +14,9 @@
 #define MCD_MAX_SECTIONS 4096u
 #define MCD_MAX_NODES 1024u
 #define MCD_MAX_CLIPS 65535u
-#define MCD_SKEL_NODE_SIZE 32u
+#define MCD_SKEL_NODE_SIZE 56u
 #define MCD_CLIP_RECORD_SIZE 48u
+#define MCD_MAX_NAME_BYTES 255u /* clip and node names, without the NUL */
 #define MCD_MAX_FRAME_RATE 100000.0f
 #define MCD_MAX_ABS_VALUE 1e7f /* bound on every stored length or parameter: keeps outputs finite */
 
@@ -36,6 +37,51 @@ static inline int32_t mcd_rd_i32(const uint8_t* p) {
 }
 float mcd_rd_f32(const uint8_t* p);
 
+/* Bit scans and counts on 64-bit words (the compiler's instructions where it has them). */
+static inline uint32_t mcd_lowest_bit(uint64_t m) { /* m != 0 */
+#if defined(__GNUC__) || defined(__clang__)
+    return (uint32_t)__builtin_ctzll(m);
+#else
+    uint32_t i = 0;
+    while (!(m & 1u)) {
+        m >>= 1;
+        ++i;
+    }
+    return i;
+#endif
+}
+static inline uint32_t mcd_highest_bit(uint64_t m) { /* m != 0 */
+#if defined(__GNUC__) || defined(__clang__)
+    return 63u - (uint32_t)__builtin_clzll(m);
+#else
+    uint32_t i = 0;
+    while (m >>= 1) ++i;
+    return i;
+#endif
+}
+static inline uint32_t mcd_popcount(uint64_t m) {
+#if defined(__GNUC__) || defined(__clang__)
+    return (uint32_t)__builtin_popcountll(m);
+#else
+    m = m - ((m >> 1) & 0x5555555555555555u);
+    m = (m & 0x3333333333333333u) + ((m >> 2) & 0x3333333333333333u);
+    m = (m + (m >> 4)) & 0x0F0F0F0F0F0F0F0Fu;
+    return (uint32_t)((m * 0x0101010101010101u) >> 56);
+#endif
+}
+
+/* `n` <= 32 bits of an LSB-first bit stream at bit `pos` of `p`; the caller guarantees that
+ * 8 bytes from byte pos / 8 are readable (payloads end with 8 zero bytes for it). */
+static inline uint32_t mcd_read_bits(const uint8_t* p, uint64_t pos, uint32_t n) {
+    uint64_t w = mcd_rd_u64(p + (size_t)(pos >> 3)) >> (pos & 7u);
+    return n ? (uint32_t)(w & (((uint64_t)1 << n) - 1u)) : 0u;
+}
+/* The same field read as a two's complement number of n bits (1 ... 32). */
+static inline int32_t mcd_read_signed(const uint8_t* p, uint64_t pos, uint32_t n) {
+    uint32_t u = mcd_read_bits(p, pos, n), sign = (uint32_t)1 << (n - 1u);
+    return (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
+}
+
 /* True when x is finite (no isfinite in strict C99 without libm macros on every compiler). */
 static inline int mcd_finite(float x) {
     return x == x && x - x == 0.0f;
@@ -47,6 +93,14 @@ static inline uint32_t mcd_fourcc(char a, char b, char c, char d) {
 }
 
 uint32_t mcd_crc32(const uint8_t* data, size_t size);
+
+/* Sizes rounded up to 4 and 16 bytes (payload fields and scratch areas). */
+static inline size_t mcd_align4(size_t x) {
+    return (x + 3u) & ~(size_t)3u;
+}
+static inline size_t mcd_align16(size_t x) {
+    return (x + 15u) & ~(size_t)15u;
+}
 
 /* ---------------------------------------------------------------- quaternion helpers */
 typedef struct mcd_quat { float x, y, z, w; } mcd_quat;
@@ -112,6 +166,23 @@ static inline mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const flo
     return mcd_qmul(tw, mcd_qmul(ref, mcd_mrp_to_quat(val + 1)));
 }
 
+static inline mcd_quat mcd_qconj(mcd_quat q) {
+    q.x = -q.x;
+    q.y = -q.y;
+    q.z = -q.z;
+    return q;
+}
+
+/* A transform's rotation as a quaternion. */
+static inline mcd_quat mcd_quat_of(const mcd_transform* t) {
+    mcd_quat q;
+    q.x = t->rotation[0];
+    q.y = t->rotation[1];
+    q.z = t->rotation[2];
+    q.w = t->rotation[3];
+    return q;
+}
+
 /* Write a track's rotation into a transform. */
 static inline void mcd_set_rotation(float out[4], mcd_quat q) {
     out[0] = q.x;
@@ -124,6 +195,74 @@ static inline void mcd_set_rotation(float out[4], mcd_quat q) {
  * s = (x - t1) / (t2 - t1): coef[c][power], for `dims` components; returns 1 / (t2 - t1). */
 float mcd_segment_coefficients(const float t[4], const float v[4][4], uint32_t dims, float coef[4][4]);
 
+/* ---------------------------------------------------------------- skeleton (skeleton.c) */
+/* A SKEL section's node records (docs/FORMAT.md). `skel` points at the start of a SKEL section
+ * that passed validation. One home for the rest pose and the hierarchy, used by every codec,
+ * the contact pass and the local -> world step. */
+
+static inline uint32_t mcd_skel_nodes(const uint8_t* skel) {
+    return mcd_rd_u32(skel);
+}
+static inline const uint8_t* mcd_skel_record(const uint8_t* skel, uint32_t node) {
+    return skel + 16 + (size_t)node * MCD_SKEL_NODE_SIZE;
+}
+static inline int32_t mcd_skel_parent(const uint8_t* skel, uint32_t node) {
+    return mcd_rd_i32(mcd_skel_record(skel, node));
+}
+/* The rest translation (BVH OFFSET, glTF rest T) of a node. */
+void mcd_skel_rest_translation(const uint8_t* skel, uint32_t node, float out[3]);
+/* The whole rest transform: rest rotation, translation and scale. */
+void mcd_skel_rest(const uint8_t* skel, uint32_t node, mcd_transform* out);
+/* A name at `off` in string block [0, size): non-empty, NUL-terminated inside the block, at
+ * most MCD_MAX_NAME_BYTES, well-formed UTF-8 without control characters; a clip name
+ * (`is_clip`) also has no '/', '\\' or ':' and is not "." or "..", so it cannot steer a path. */
+int mcd_valid_name(const uint8_t* block, uint32_t size, uint32_t off, int is_clip);
+/* Check a SKEL section (every rule of docs/FORMAT.md). */
+mcd_result mcd_skel_check(const uint8_t* section, uint32_t size);
+/* A node's world transform from its parent's world and its own local transform: rotation
+ * p.r x c.r, translation p.t + p.r (p.s * c.t), scale p.s * c.s (`world` may be `local`). */
+void mcd_compose(const mcd_transform* parent, const mcd_transform* local, mcd_transform* world);
+/* Local transforms of every node -> model space, parents first (the skeleton orders them so). */
+void mcd_local_to_world(const uint8_t* skel, uint32_t nodes, mcd_transform* pose);
+/* The identity transform (unit scale). */
+void mcd_transform_identity(mcd_transform* out);
+
+/* ---------------------------------------------------------------- double quaternions */
+/* For the solvers and closed-loop predictors that work in binary64 (contacts, ik-predict). */
+typedef struct mcd_dquat { double x, y, z, w; } mcd_dquat;
+
+static inline mcd_dquat mcd_dq_mul(mcd_dquat a, mcd_dquat b) {
+    mcd_dquat r;
+    r.x = a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y;
+    r.y = a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x;
+    r.z = a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w;
+    r.w = a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z;
+    return r;
+}
+static inline mcd_dquat mcd_dq_identity(void) {
+    mcd_dquat q = {0.0, 0.0, 0.0, 1.0};
+    return q;
+}
+static inline mcd_dquat mcd_dq_conj(mcd_dquat q) {
+    q.x = -q.x;
+    q.y = -q.y;
+    q.z = -q.z;
+    return q;
+}
+/* v' = q v q* for unit q. */
+static inline void mcd_dq_rotate(mcd_dquat q, const double v[3], double out[3]) {
+    double tx = 2.0 * (q.y * v[2] - q.z * v[1]);
+    double ty = 2.0 * (q.z * v[0] - q.x * v[2]);
+    double tz = 2.0 * (q.x * v[1] - q.y * v[0]);
+    out[0] = v[0] + q.w * tx + (q.y * tz - q.z * ty);
+    out[1] = v[1] + q.w * ty + (q.z * tx - q.x * tz);
+    out[2] = v[2] + q.w * tz + (q.x * ty - q.y * tx);
+}
+/* Normalised to binary32 (identity when q is zero or not finite). */
+mcd_quat mcd_dq_to_quat(mcd_dquat q);
+/* The basis axis least along u (0, 1 or 2; the first of equals): a direction never parallel to u. */
+uint32_t mcd_least_axis(const double u[3]);
+
 /* ---------------------------------------------------------------- clip view and codecs */
 /* Everything a codec needs to know about one clip, resolved from the container. */
 typedef struct mcd_clip_view {
@@ -135,40 +274,35 @@ typedef struct mcd_clip_view {
     uint32_t node_count;
     const uint8_t* section;  /* the whole codec section the payload lies in */
     uint32_t section_size;
-    /* The section's resident memory (filled by open_section), or NULL: always NULL during
-     * mcd_validate, and for codecs that sample in place. */
-    const uint8_t* resident;
+    uint32_t scratch_need;   /* the codec scratch the clip record states */
 } mcd_clip_view;
 
 typedef struct mcd_codec_ops {
-    uint32_t codec;         /* mcd_codec */
-    uint32_t section_kind;  /* FourCC of the section that holds its payloads */
-    /* Check one clip's payload. Called by mcd_validate with clip->resident == NULL (check
-     * everything the raw bytes allow) and again by mcd_open with the section's resident
-     * memory decoded (check what only the decoded data shows). After both return MCD_OK,
-     * sampling is memory-safe and finite. */
+    uint32_t codec;           /* mcd_codec */
+    uint32_t section_kind;    /* FourCC of the section that holds its payloads */
+    uint32_t section_version; /* the layout version of that section this runtime reads */
+    /* Check the section as a whole (what is shared by its payloads), or NULL. Called once by
+     * mcd_validate, before any payload is checked. */
+    mcd_result (*validate_section)(const uint8_t* section, uint32_t size);
+    /* Check one clip's payload: every rule the format states for it, including entropy
+     * streams. After it returns MCD_OK, sampling is memory-safe and finite. Linear in the
+     * payload size. */
     mcd_result (*validate)(const mcd_clip_view* clip);
-    /* Resident bytes the codec decodes its section into at open (multiple of 16), or NULL
-     * when it samples in place. Safe on any section bytes; 0 means none. */
-    size_t (*resident_size)(const uint8_t* section, uint32_t size);
-    /* Decode the section into `resident` (resident_size bytes, 16-aligned, zeroed by the
-     * caller) and check the decoded data. NULL when resident_size is NULL. */
-    mcd_result (*open_section)(const uint8_t* section, uint32_t size, uint8_t* resident);
-    /* Scratch bytes this codec needs for the clip (multiple of 16). Called after validate. */
+    /* Scratch bytes this codec needs for the clip (multiple of 16). Called after validate;
+     * the encoder stores the result in the clip record. */
     size_t (*scratch_size)(const mcd_clip_view* clip);
     /* Local transforms of every node at frame position x in [0, frame_count - 1].
-     * `fresh` is nonzero when the scratch holds nothing from an earlier call for this clip. */
-    mcd_result (*sample)(const mcd_clip_view* clip, float x, uint32_t flags, mcd_transform* out,
-                         void* scratch, int fresh);
+     * `fresh` is nonzero when the scratch holds nothing from an earlier call for this clip.
+     * Cannot fail on a validated payload. */
+    void (*sample)(const mcd_clip_view* clip, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                   int fresh);
 } mcd_codec_ops;
 
 /* The codec table (codecs.c); NULL for an unknown codec id or section kind. */
 const mcd_codec_ops* mcd_find_codec(uint32_t codec);
 const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
-/* The layout version of a codec's section this runtime reads (docs/FORMAT.md). */
-uint32_t mcd_codec_section_version(uint32_t codec);
 
-#define MCD_MAX_CODEC_ID 7u /* resident_offsets[] in mcd_asset is indexed by codec id */
+#define MCD_MAX_CODEC_ID 7u
 
 /* Codec implementations. */
 extern const mcd_codec_ops mcd_codec_spline_ops;
@@ -179,12 +313,9 @@ extern const mcd_codec_ops mcd_codec_ikpredict_ops;
 extern const mcd_codec_ops mcd_codec_rmapca_ops;
 
 /* ---------------------------------------------------------------- container access */
-/* Resolve clip `clip` of an opened (validated) asset. */
+/* Resolve clip `clip` of an opened asset. */
 mcd_result mcd_clip_view_get(const mcd_asset* asset, uint32_t clip, mcd_clip_view* out,
                              const mcd_codec_ops** out_ops);
-
-/* Offset (and size) of the asset's CNTC section, or 0 when it has none. */
-uint32_t mcd_contacts_section(const mcd_asset* asset, uint32_t* out_size);
 
 /* Offset of skeleton `index`'s SKEL section, or 0 when there is none. */
 uint32_t mcd_skeleton_offset(const mcd_asset* asset, uint32_t index);

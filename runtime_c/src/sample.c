@@ -15,8 +15,7 @@ typedef struct scratch_header {
     const uint8_t* data; /* the asset it was initialised for */
     uint64_t asset_size;
     uint32_t crc;
-    uint32_t contacts;      /* offset of the CNTC section, 0 when the asset has none */
-    uint32_t contacts_size;
+    uint32_t reserved[3];
 } scratch_header;
 
 typedef char scratch_header_fits[sizeof(scratch_header) <= MCD_SCRATCH_HEADER_SIZE ? 1 : -1];
@@ -29,15 +28,16 @@ mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratc
     scratch_header* h = (scratch_header*)scratch;
     if (!asset || !asset->data || !scratch) return MCD_ERROR_INVALID_ARGUMENT;
     if (((uintptr_t)scratch & 15u) != 0) return MCD_ERROR_INVALID_ARGUMENT;
-    if (scratch_size < asset->scratch_size) return MCD_ERROR_BUFFER_TOO_SMALL;
-    memset(scratch, 0, asset->scratch_size);
+    /* Smaller than the asset's largest need is fine for an instance that plays smaller clips:
+     * mcd_sample checks each clip's need. */
+    if (scratch_size < MCD_SCRATCH_MIN_SIZE + asset->contacts_scratch) return MCD_ERROR_BUFFER_TOO_SMALL;
+    memset(scratch, 0, MCD_SCRATCH_HEADER_SIZE + asset->contacts_scratch);
     h->magic = SCRATCH_MAGIC;
     h->clip = UINT32_MAX;
     h->size = scratch_size;
     h->data = asset->data;
     h->asset_size = asset->size;
     h->crc = mcd_rd_u32(asset->data + 20);
-    h->contacts = mcd_contacts_section(asset, &h->contacts_size);
     return MCD_OK;
 }
 
@@ -63,27 +63,6 @@ static float frame_position(float time_seconds, float rate, uint32_t frames, uin
     return x;
 }
 
-static void local_to_world(const uint8_t* skeleton, uint32_t nodes, mcd_transform* pose) {
-    uint32_t i;
-    for (i = 0; i < nodes; ++i) {
-        int32_t parent = mcd_rd_i32(skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE);
-        if (parent >= 0) {
-            const mcd_transform* p = &pose[parent];
-            mcd_transform* c = &pose[i];
-            mcd_quat pq, cq, wq;
-            float t[3];
-            pq.x = p->rotation[0]; pq.y = p->rotation[1]; pq.z = p->rotation[2]; pq.w = p->rotation[3];
-            cq.x = c->rotation[0]; cq.y = c->rotation[1]; cq.z = c->rotation[2]; cq.w = c->rotation[3];
-            mcd_qrotate(pq, c->translation, t);
-            wq = mcd_qmul(pq, cq);
-            c->translation[0] = p->translation[0] + t[0];
-            c->translation[1] = p->translation[1] + t[1];
-            c->translation[2] = p->translation[2] + t[2];
-            c->rotation[0] = wq.x; c->rotation[1] = wq.y; c->rotation[2] = wq.z; c->rotation[3] = wq.w;
-        }
-    }
-}
-
 mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds, uint32_t flags,
                       mcd_transform* out_pose, uint32_t pose_capacity, void* scratch) {
     const uint32_t known = MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS;
@@ -96,24 +75,22 @@ mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
     if (!asset || !asset->data || !out_pose || !scratch) return MCD_ERROR_INVALID_ARGUMENT;
     if ((flags & ~known) != 0 || !mcd_finite(time_seconds)) return MCD_ERROR_INVALID_ARGUMENT;
     if (h->magic != SCRATCH_MAGIC || h->data != asset->data || h->asset_size != asset->size ||
-        h->crc != mcd_rd_u32(asset->data + 20) || h->size < asset->scratch_size)
+        h->crc != mcd_rd_u32(asset->data + 20))
         return MCD_ERROR_SCRATCH_MISMATCH;
     r = mcd_clip_view_get(asset, clip, &view, &ops);
     if (r != MCD_OK) return r;
     if (pose_capacity < view.node_count) return MCD_ERROR_BUFFER_TOO_SMALL;
+    /* Scratch layout: header, the contact pass's area (assets with CNTC), the codec's area. */
+    if (h->size < (uint64_t)MCD_SCRATCH_HEADER_SIZE + asset->contacts_scratch + view.scratch_need)
+        return MCD_ERROR_BUFFER_TOO_SMALL;
     x = frame_position(time_seconds, view.frame_rate, view.frame_count, flags);
     fresh = h->clip != clip;
     h->clip = clip;
-    r = ops->sample(&view, x, flags, out_pose, (uint8_t*)scratch + MCD_SCRATCH_HEADER_SIZE, fresh);
-    if (r != MCD_OK) {
-        h->clip = UINT32_MAX;
-        return r;
-    }
-    if ((flags & MCD_SAMPLE_CONTACTS) && h->contacts) {
-        /* The contact pass's world pose lies at the end of the scratch (container.c sizes it). */
-        uint8_t* area = (uint8_t*)scratch + asset->scratch_size - mcd_contacts_scratch_size(asset->max_nodes);
-        mcd_contacts_apply(asset->data + h->contacts, h->contacts_size, clip, &view, x, out_pose, area);
-    }
-    if (flags & MCD_SAMPLE_WORLD) local_to_world(view.skeleton, view.node_count, out_pose);
+    ops->sample(&view, x, flags, out_pose, (uint8_t*)scratch + MCD_SCRATCH_HEADER_SIZE + asset->contacts_scratch,
+                fresh);
+    if ((flags & MCD_SAMPLE_CONTACTS) && asset->contacts)
+        mcd_contacts_apply(asset->data + asset->contacts, asset->contacts_size, clip, &view, x, out_pose,
+                           (uint8_t*)scratch + MCD_SCRATCH_HEADER_SIZE);
+    if (flags & MCD_SAMPLE_WORLD) mcd_local_to_world(view.skeleton, view.node_count, out_pose);
     return MCD_OK;
 }

@@ -8,6 +8,7 @@ A thin wrapper: every call goes to ``runtime_c``; a result other than ``MCD_OK``
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -25,7 +26,9 @@ __all__ = [
     "SAMPLE_LOOP",
     "SAMPLE_NEAREST",
     "SAMPLE_WORLD",
+    "OPEN_PREVALIDATED",
     "VALIDATE_SKIP_CHECKSUM",
+    "clip_scratch_size",
     "validate",
     "version",
 ]
@@ -35,6 +38,9 @@ SAMPLE_LOOP = lib.MCD_SAMPLE_LOOP
 SAMPLE_NEAREST = lib.MCD_SAMPLE_NEAREST
 SAMPLE_CONTACTS = lib.MCD_SAMPLE_CONTACTS
 VALIDATE_SKIP_CHECKSUM = lib.MCD_VALIDATE_SKIP_CHECKSUM
+OPEN_PREVALIDATED = lib.MCD_OPEN_PREVALIDATED
+NODE_JOINT, NODE_END_SITE, NODE_VIRTUAL = lib.MCD_NODE_JOINT, lib.MCD_NODE_END_SITE, lib.MCD_NODE_VIRTUAL
+TRANSFORM_FLOATS = 10  # mcd_transform: rotation x y z w, translation x y z, scale x y z
 
 
 class Result(IntEnum):
@@ -98,38 +104,56 @@ class ClipInfo:
     frame_rate: float
     duration: float
     node_count: int
+    scratch_size: int = 0
+    data_offset: int = 0
+    data_size: int = 0
 
 
 @dataclass(frozen=True)
 class NodeInfo:
     name: str
     parent: int
-    is_end_site: bool
-    rest_offset: tuple[float, float, float]
+    kind: int  # NODE_JOINT, NODE_END_SITE or NODE_VIRTUAL
+    rest_translation: tuple[float, float, float]
+    rest_rotation: tuple[float, float, float, float]
+    rest_scale: tuple[float, float, float]
     channels: tuple[int, ...]
+
+    @property
+    def is_end_site(self) -> bool:
+        return self.kind == NODE_END_SITE
+
+    @property
+    def rest_offset(self) -> tuple[float, float, float]:
+        """The BVH name of the rest translation."""
+        return self.rest_translation
 
 
 class Asset:
-    """An opened asset. Keeps its own copy of the bytes and one scratch buffer, so one
-    ``Asset`` must not be sampled from several Python threads at once."""
+    """An opened asset, sampled in place from its own copy of the bytes. Safe to share
+    between Python threads: each thread samples with its own scratch buffer (the runtime
+    releases the GIL while it samples)."""
 
     def __init__(self, data: bytes, skip_checksum: bool = False) -> None:
         self._data = bytes(data)
         self._buf = ffi.from_buffer(self._data)
         self._asset = ffi.new("mcd_asset*")
         flags = VALIDATE_SKIP_CHECKSUM if skip_checksum else 0
-        need = ffi.new("size_t*")
-        _check(lib.mcd_resident_size(self._buf, len(self._data), flags, need), "mcd_resident_size")
-        self.resident_size = int(need[0])
-        self._resident_mem = ffi.new("uint8_t[]", self.resident_size + 16)
-        resident = _aligned16(self._resident_mem)
-        _check(lib.mcd_open(self._buf, len(self._data), flags, resident, self.resident_size,
-                            self._asset), "mcd_open")
-        size = lib.mcd_scratch_size(self._asset)
-        self._scratch_mem = ffi.new("uint8_t[]", size + 16)
-        self._scratch = _aligned16(self._scratch_mem)
-        _check(lib.mcd_scratch_init(self._asset, self._scratch, size), "mcd_scratch_init")
+        _check(lib.mcd_open(self._buf, len(self._data), flags, self._asset), "mcd_open")
+        self._local = threading.local()
         self.clips = [self._clip_info(i) for i in range(lib.mcd_clip_count(self._asset))]
+
+    @property
+    def _scratch(self):
+        """This thread's scratch (the runtime's decoder cache; one per thread, made on first use)."""
+        scratch = getattr(self._local, "scratch", None)
+        if scratch is None:
+            size = lib.mcd_scratch_size(self._asset)
+            self._local.mem = ffi.new("uint8_t[]", size + 16)
+            scratch = _aligned16(self._local.mem)
+            _check(lib.mcd_scratch_init(self._asset, scratch, size), "mcd_scratch_init")
+            self._local.scratch = scratch
+        return scratch
 
     @property
     def size(self) -> int:
@@ -155,6 +179,9 @@ class Asset:
             info.frame_rate,
             info.duration,
             info.node_count,
+            info.scratch_size,
+            info.data_offset,
+            info.data_size,
         )
 
     def clip_index(self, clip: int | str) -> int:
@@ -181,18 +208,20 @@ class Asset:
                 NodeInfo(
                     ffi.string(info.name).decode("utf-8"),
                     int(info.parent),
-                    bool(info.is_end_site),
-                    tuple(float(info.rest_offset[k]) for k in range(3)),
+                    int(info.kind),
+                    tuple(float(info.rest_translation[k]) for k in range(3)),
+                    tuple(float(info.rest_rotation[k]) for k in range(4)),
+                    tuple(float(info.rest_scale[k]) for k in range(3)),
                     tuple(int(info.channels[k]) for k in range(info.channel_count)),
                 )
             )
         return out
 
     def sample(self, clip: int | str, time: float, flags: int = 0) -> np.ndarray:
-        """One pose: ``(node_count, 7)`` float32 rows ``qx qy qz qw tx ty tz``."""
+        """One pose: ``(node_count, 10)`` float32 rows ``qx qy qz qw tx ty tz sx sy sz``."""
         index = self.clip_index(clip)
         nodes = self.clips[index].node_count if 0 <= index < len(self.clips) else 1
-        out = np.empty((nodes, 7), dtype=np.float32)
+        out = np.empty((nodes, TRANSFORM_FLOATS), dtype=np.float32)
         _check(
             lib.mcd_sample(
                 self._asset, index, float(time), flags,
@@ -203,13 +232,13 @@ class Asset:
         return out
 
     def sample_times(self, clip: int | str, times: np.ndarray, flags: int = 0) -> np.ndarray:
-        """Poses at many times, in order: ``(len(times), node_count, 7)`` float32."""
+        """Poses at many times, in order: ``(len(times), node_count, 10)`` float32."""
         index = self.clip_index(clip)
         if not 0 <= index < len(self.clips):
             raise RuntimeResultError(lib.MCD_ERROR_OUT_OF_RANGE, "mcd_sample")
         nodes = self.clips[index].node_count
         t = np.ascontiguousarray(times, dtype=np.float32)
-        out = np.empty((len(t), nodes, 7), dtype=np.float32)
+        out = np.empty((len(t), nodes, TRANSFORM_FLOATS), dtype=np.float32)
         code = lib.mcdpy_sample_many(
             self._asset, index, ffi.cast("float*", ffi.from_buffer(t)), len(t), flags,
             ffi.cast("mcd_transform*", ffi.from_buffer(out)), nodes, self._scratch,
@@ -219,18 +248,21 @@ class Asset:
 
     def sample_frames(
         self, clip: int | str, frames: np.ndarray | None = None, world: bool = False,
-        contacts: bool = False,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Rotations ``(F, N, 4)`` and translations ``(F, N, 3)`` at integer frames
-        (all frames by default), local or world, as float64 arrays; ``contacts`` applies the
-        clip's contact trajectories (``SAMPLE_CONTACTS``)."""
+        contacts: bool = False, scales: bool = False,
+    ) -> tuple[np.ndarray, ...]:
+        """Rotations ``(F, N, 4)`` and translations ``(F, N, 3)`` (and with ``scales`` the
+        scales ``(F, N, 3)``) at integer frames (all frames by default), local or world, as
+        float64 arrays; ``contacts`` applies the clip's contact trajectories
+        (``SAMPLE_CONTACTS``)."""
         info = self.clips[self.clip_index(clip)]
         if frames is None:
             frames = np.arange(info.frame_count)
         times = np.asarray(frames, dtype=np.float64) / info.frame_rate
         flags = (SAMPLE_WORLD if world else 0) | (SAMPLE_CONTACTS if contacts else 0)
-        poses = self.sample_times(info.index, times, flags)
-        return poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)
+        poses = self.sample_times(info.index, times, flags).astype(np.float64)
+        if scales:
+            return poses[..., :4], poses[..., 4:7], poses[..., 7:]
+        return poses[..., :4], poses[..., 4:7]
 
 
 # ---------------------------------------------------------------- entropy coder
@@ -288,3 +320,16 @@ def entropy_decode(data: bytes, count: int, channels: int = 1) -> np.ndarray:
     )
     _check(code, "mcd_entropy_decode")
     return out
+
+
+# ---------------------------------------------------------------- encoder support
+def clip_scratch_size(codec: int, section: bytes, payload_offset: int, payload_size: int, skeleton: bytes,
+                      frame_count: int, frame_rate: float) -> int:
+    """The scratch bytes a clip needs (what its clip record stores), from the runtime itself:
+    ``section`` is the complete codec section holding the payload, ``skeleton`` a complete
+    ``SKEL`` section. Raises :class:`RuntimeResultError` when the payload does not validate."""
+    out = ffi.new("size_t*")
+    code = lib.mcd_offline_clip_scratch(codec, ffi.from_buffer(section), len(section), payload_offset, payload_size,
+                                        ffi.from_buffer(skeleton), len(skeleton), frame_count, frame_rate, out)
+    _check(code, "mcd_offline_clip_scratch")
+    return int(out[0])

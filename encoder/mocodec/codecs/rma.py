@@ -23,18 +23,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..entropy import entropy_encode
+from ..kinematics import forward_kinematics
 from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import Tolerance
 from . import CodecOutput, ProgressFn
 from . import spline
-from .spline import DIMS, KIND_TRANSLATION, KIND_TWIST, SplineClipResult, _ClipFitter, _Track, node_modes
+from .rma_bitstream import DEFAULT_GROUP_SHIFT, CurveTrack, payload
+from .spline import KIND_TWIST, SplineClipResult, _ClipFitter, _Track, node_modes
 
 SECTION_HEADER = 16
-PAYLOAD_HEADER = 32
-SEEK_SHIFT = 5
-DESC_SIZE = {1: 20, 2: 32, 3: 16}
 
 
 @dataclass
@@ -54,6 +52,10 @@ class RMASettings:
         Rounds of check-through-the-runtime and budget tightening before giving up.
     shell_cm : float, default 3.0
         Every rotation is also held to a virtual vertex this far from its joint.
+    group_shift : int, default 4
+        Key values come in groups of ``2**group_shift`` keys (docs/FORMAT.md, RMAL): a random
+        access decodes at most one group's records per track, and each group costs an entry
+        (offset, widths, its first key whole). Larger groups: fewer bytes, slower random access.
     key_grid : int or None, default None
         Keys prefer multiples of this many frames, so key times cost fewer bits (a key time is
         coded as its grid cell and its offset in the cell, almost always 0); 1 ... 8. None:
@@ -67,6 +69,7 @@ class RMASettings:
     max_repairs: int = 60
     shell_cm: float = 3.0
     key_grid: int | None = None
+    group_shift: int = DEFAULT_GROUP_SHIFT
 
     def __post_init__(self) -> None:
         self.quant_fraction = float(self.quant_fraction)
@@ -84,6 +87,9 @@ class RMASettings:
         self.key_grid = int(self.key_grid)
         if not 1 <= self.key_grid <= 8:
             raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
+        self.group_shift = int(self.group_shift)
+        if not 1 <= self.group_shift <= 6:
+            raise ValueError(f"group_shift must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shift}")
 
 
 def _align(n: int, a: int) -> int:
@@ -95,88 +101,34 @@ def section_prefix(clip_count: int) -> bytes:
     return struct.pack("<IIII", clip_count, 0, 0, 0)
 
 
-# Key value predictors (descriptor byte 1, bits 4-5): the previous key, or the previous key
-# plus half / all of the slope of the two keys before, carried over the gap to this key. Dense
-# keys (tight tolerances) follow the slope; sparse ones do not, so each track picks its own.
-PREDICT_PREVIOUS, PREDICT_HALF_SLOPE, PREDICT_SLOPE = 0, 1, 2
+def curve_track(t: _Track) -> CurveTrack:
+    """A fitted track as the payload stores it: key frames and lattice integers."""
+    step = t.quantizer.step
+    # One step for the three MRP or translation components (and a twist's own angle step).
+    assert np.all(step[-3:] == step[-1]), "the format stores one step per track"
+    return CurveTrack(kind=t.kind, frames=np.asarray(t.keys, dtype=np.int64),
+                      q=t.quantizer.encode(t.key_values), step=float(step[-1]),
+                      angle_step=float(step[0]) if t.kind == KIND_TWIST else 0.0,
+                      ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=t.split)
 
 
-def key_residuals(q: np.ndarray, frames: np.ndarray, predictor: int) -> np.ndarray:
-    """Lattice integers ``q`` (K, d) of keys at ``frames`` (K,) minus their prediction, in
-    integers only (docs/FORMAT.md gives the rounding the runtime repeats)."""
-    q = np.asarray(q, dtype=np.int64)
-    out = np.diff(q, axis=0, prepend=np.zeros((1, q.shape[1]), dtype=np.int64))
-    if predictor == PREDICT_PREVIOUS or len(q) < 3:
-        return out
-    f = np.asarray(frames, dtype=np.int64)
-    num = (q[1:-1] - q[:-2]) * ((f[2:] - f[1:-1]) * predictor)[:, None]
-    den = (2 * (f[1:-1] - f[:-2]))[:, None]
-    out[2:] = q[2:] - (q[1:-1] + (2 * num + den) // (2 * den))
-    return out
-
-
-def serialize(motion: Motion, tracks: list[_Track], grid_of: int = 1) -> bytes:
-    """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it); ``grid_of``
-    is the key grid the tracks were fitted on."""
-    sk = motion.skeleton
+def serialize(motion: Motion, tracks: list[_Track], group_shift: int = DEFAULT_GROUP_SHIFT) -> bytes:
+    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
     rows, constants, animated = node_modes(motion, tracks)
-    modes = bytes(rm | (tm << 2) for rm, tm, _, _ in rows).ljust(_align(sk.node_count, 4), b"\0")
-    descs, streams, gaps = [], [], []
-    keys = 0
-    for t in animated:
-        d = DIMS[t.kind]
-        q = t.quantizer.encode(t.key_values)
-        options = [entropy_encode(key_residuals(q, t.keys, p).ravel(), channels=d)
-                   for p in (PREDICT_PREVIOUS, PREDICT_HALF_SLOPE, PREDICT_SLOPE)]
-        predictor = int(np.argmin([len(o) for o in options]))
-        stream = options[predictor]
-        step = t.quantizer.step
-        # One step for the three MRP or translation components (and a twist's own angle step).
-        assert np.all(step[-3:] == step[-1]), "the format stores one step per track"
-        grid = grid_of
-        byte1 = grid | predictor << 4
-        if t.is_rotation:
-            desc = struct.pack("<BB3hIIf", t.kind, byte1, *t.ref_codes.tolist(), len(t.keys), len(stream), step[-1])
-        else:
-            desc = struct.pack("<BBHIIf", t.kind, byte1, 0, len(t.keys), len(stream), step[-1])
-        if t.kind == KIND_TWIST:
-            desc += struct.pack("<3hHf", *t.axis_codes.tolist(), 0, step[0])
-        descs.append(desc)
-        streams.append(stream)
-        # Interior keys as (grid cells since the previous key's cell, offset in the cell); the
-        # first (0) and last (F - 1) keys are implied.
-        inner = t.keys[1:-1]
-        gaps.append(np.stack((np.diff(inner // grid, prepend=0), inner % grid), axis=1).ravel())
-        keys += len(t.keys)
-    gap_stream = entropy_encode(np.concatenate(gaps).astype(np.int64), channels=2) if gaps else b""
-    body = b"".join([modes, np.asarray(constants, dtype="<f4").tobytes(), *descs, gap_stream, *streams])
-    size = _align(PAYLOAD_HEADER + len(body), 4)
-    header = struct.pack("<IIIIIIII", size, motion.frame_count, sk.node_count, len(animated),
-                         len(constants), keys, 0, len(gap_stream))
-    return (header + body).ljust(size, b"\0")
+    modes = [(rm, tm, 0) for rm, tm, _, _ in rows]
+    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shift)
 
 
-def resident_bytes(payload: bytes) -> int:
-    """Bytes the runtime decodes one payload into (docs/FORMAT.md, RMAL resident block)."""
-    _, frames, nodes, tracks, consts, keys = struct.unpack_from("<IIIIII", payload)
-    pos = PAYLOAD_HEADER + _align(nodes, 4) + 4 * consts
-    values = 0
-    for _ in range(tracks):
-        kind = payload[pos]
-        count = struct.unpack_from("<I", payload, pos + (4 if kind == KIND_TRANSLATION else 8))[0]
-        values += count * DIMS[kind]
-        pos += DESC_SIZE[kind]
-    seek = ((frames - 1) >> SEEK_SHIFT) + 1
-    return 16 + 16 * tracks + _align(4 * keys, 16) + _align(4 * values, 16) + _align(4 * tracks * seek, 16)
+JUMP_CM = 20.0  # a point moving this far in one frame is the capture jumping, not motion
 
 
-def place(payloads: list[bytes]) -> list[bytes]:
-    """Set each payload's resident offset for a section holding them in this order."""
-    out, offset = [], 0
-    for p in payloads:
-        out.append(p[:24] + struct.pack("<I", offset) + p[28:])
-        offset += resident_bytes(p)
-    return out
+def frame0_jumps(motion: Motion, cm_per_unit: float) -> bool:
+    """True when some point jumps more than :data:`JUMP_CM` from frame 0 to frame 1 (CMU's
+    files start with a T-pose the converter added): the curves then detach frame 0."""
+    if motion.frame_count < 3:
+        return False
+    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2])
+    return bool(np.max(np.linalg.norm(pos[1] - pos[0], axis=-1)) * cm_per_unit > JUMP_CM)
 
 
 class _RMAFitter(_ClipFitter):
@@ -185,14 +137,15 @@ class _RMAFitter(_ClipFitter):
     quantizer_for = staticmethod(StepQuantizer.for_range)
 
     def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings) -> None:
+        self.split = frame0_jumps(motion, cm_per_unit)
         super().__init__(motion, cm_per_unit, settings)  # type: ignore[arg-type]
         self.key_grid = settings.key_grid
 
     def _mandatory_keys(self) -> np.ndarray:
-        return np.unique([0, self.frames - 1])
+        return np.unique([0, 1, self.frames - 1] if self.split else [0, self.frames - 1])
 
     def _payload(self, tracks: list[_Track]) -> bytes:
-        return serialize(self.motion, tracks, self.key_grid)
+        return serialize(self.motion, tracks, self.settings.group_shift)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
@@ -217,8 +170,7 @@ def encode(
         r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, one))
         payloads.append(r.payload)
         stats.append({"keys": r.keys, "tracks": r.tracks, "repairs": r.repairs,
-                      "budget_scale": r.scale, "encode_seconds": r.seconds,
-                      "resident_bytes": resident_bytes(r.payload)})
+                      "budget_scale": r.scale, "encode_seconds": r.seconds})
         if progress:
             progress(m.name)
-    return CodecOutput(payloads=place(payloads), section_prefix=section_prefix(len(payloads)), stats=stats)
+    return CodecOutput(payloads=payloads, section_prefix=section_prefix(len(payloads)), stats=stats)

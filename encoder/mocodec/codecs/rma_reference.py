@@ -1,8 +1,8 @@
-"""A reference decoder of the ``RMAL`` payload written from docs/FORMAT.md, in float64.
+"""A reference decoder of the ``RMAL`` version 2 payload, written from docs/FORMAT.md.
 
 For tests only: it checks the format document and the C runtime against each other (they
-must agree to float32 precision). The entropy streams are decoded with :mod:`mocodec.entropy`,
-whose own tests check it against the format's coder specification.
+must agree to float32 precision). It reads every key of every track in index order, the way
+the format defines them, and evaluates the curves in float64.
 """
 from __future__ import annotations
 
@@ -11,86 +11,128 @@ import struct
 import numpy as np
 
 from .. import rotations as R
+from ..bitpack import read_bits
 from ..curves import catmull_rom
-from ..entropy import entropy_decode
 from ..motion import Skeleton
 from .spline_reference import track_rotation
 
-_DESC_SIZE = {1: 20, 2: 32, 3: 16}
+_DESC_SIZE = {1: 32, 2: 44, 3: 24, 4: 24}
+_DIMS = {1: 3, 2: 4, 3: 3, 4: 3}
 
 
-def _values(residual: np.ndarray, frames: np.ndarray, predictor: int) -> np.ndarray:
-    """Key lattice integers from their residuals, key by key as FORMAT.md states it."""
-    q = np.zeros(residual.shape, dtype=np.int64)
-    for i in range(len(q)):
-        pred = q[i - 1] if i else 0
-        if i >= 2 and predictor:
-            num = (q[i - 1] - q[i - 2]) * (frames[i] - frames[i - 1]) * predictor
-            den = 2 * (frames[i - 1] - frames[i - 2])
-            pred = q[i - 1] + (2 * num + den) // (2 * den)
-        q[i] = pred + residual[i]
-    return q
+def _signed(u: int, n: int) -> int:
+    return u - (1 << n) if u >> (n - 1) else u
 
 
-def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Local rotations (len(x), N, 4) and translations (len(x), N, 3) at frame positions x."""
-    size, frames, nodes, tracks, nconst, keys, _, gap_bytes = struct.unpack_from("<8I", payload)
+def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
+    """The payload's header fields and, per track, its kind, key frames (K,), lattice
+    integers (K, d), steps (d,), reference and axis."""
+    size, frames, nodes, ntracks, nconst, gshift = struct.unpack_from("<IIIIIB", payload)
     pos = 32
-    modes = payload[pos:pos + nodes]
+    modes = list(payload[pos:pos + nodes])
     pos += (nodes + 3) // 4 * 4
     consts = np.frombuffer(payload, "<f4", nconst, pos).astype(np.float64)
     pos += 4 * nconst
     descs = []
-    for _ in range(tracks):
-        kind = payload[pos]
-        d = 4 if kind == 2 else 3
-        at = 4 if kind == 3 else 8
-        count, vbytes, shared = struct.unpack_from("<IIf", payload, pos + at)
-        step = np.full(d, shared, dtype=np.float32)
+    for _ in range(ntracks):
+        kind, gs, predictor, offset_bits, K, data_bytes, extras, step = struct.unpack_from("<BBBBIIIf", payload, pos)
+        d = _DIMS[kind]
+        abits = list(payload[pos + 20:pos + 20 + d])
+        steps = np.full(d, step, dtype=np.float32)
         ref = axis = None
-        if kind != 3:
-            codes = np.frombuffer(payload, "<i2", 3, pos + 2).astype(np.float64) / 32767.0
-            ref = R.quat_from_mrp(codes)
-            if kind == 2:
-                a = np.frombuffer(payload, "<i2", 3, pos + 20).astype(np.float64)
-                axis = a / np.linalg.norm(a)
-                step[0] = struct.unpack_from("<f", payload, pos + 28)[0]
-        descs.append((kind, d, count, vbytes, step, ref, axis, payload[pos + 1]))
+        if kind in (1, 2):
+            ref = R.quat_from_mrp(np.frombuffer(payload, "<i2", 3, pos + 24).astype(np.float64) / 32767.0)
+        if kind == 2:
+            a = np.frombuffer(payload, "<i2", 3, pos + 32).astype(np.float64)
+            axis = a / np.linalg.norm(a)
+            steps[0] = struct.unpack_from("<f", payload, pos + 40)[0]
+        descs.append(dict(kind=kind, d=d, gs=gs & 3, split=bool(gs & 4), extras=extras, predictor=predictor,
+                          offset_bits=offset_bits, K=K,
+                          data_bytes=data_bytes, steps=steps, abits=abits, ref=ref, axis=axis))
         pos += _DESC_SIZE[kind]
-    interior = sum(max(count - 2, 0) for _, _, count, *_ in descs)
-    gaps = entropy_decode(payload[pos:pos + gap_bytes], 2 * interior, 2).astype(np.int64).reshape(-1, 2)
-    pos += gap_bytes
+    pos = (pos + 3) // 4 * 4
+    G = 1 << gshift
+    for t in descs:
+        cells = ((frames - 2) >> t["gs"]) + 1 if frames > 1 else 0
+        words = (cells + 63) // 64
+        mask_at = pos
+        extra_at = mask_at + 8 * words + 4 * ((words + 3) // 4)
+        ebits = max(1, (cells - 1).bit_length())
+        table_at = extra_at + 4 * ((t["extras"] * ebits + 31) // 32)
+        groups = (t["K"] - 1) // G + 1
+        d = t["d"]
+        entry = t["offset_bits"] + 5 * d + t["gs"] + sum(t["abits"])
+        data_at = table_at + 4 * ((groups * entry + 31) // 32)
+        pos = data_at + t["data_bytes"]
+        table = payload[table_at:data_at]
+        data = payload[data_at:pos] + bytes(8)
+        set_cells = [c for c in range(cells) if payload[mask_at + c // 8] >> (c % 8) & 1]
+        extra = [read_bits(payload[extra_at:table_at] + bytes(8), k * ebits, ebits) for k in range(t["extras"])]
+        set_cells = sorted(set_cells + extra)  # a cell holding n keys appears n times
+        q = np.zeros((t["K"], d), dtype=np.int64)
+        offs = np.zeros(t["K"], dtype=np.int64)
+        for g in range(groups):
+            bit = g * entry
+            start = read_bits(table, bit, t["offset_bits"])
+            bit += t["offset_bits"]
+            w = [read_bits(table, bit + 5 * c, 5) for c in range(d)]
+            bit += 5 * d
+            k0 = g * G
+            offs[k0] = read_bits(table, bit, t["gs"])
+            bit += t["gs"]
+            for c in range(d):
+                q[k0, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
+                bit += t["abits"][c]
+            n = min(G, t["K"] - k0)
+            rec = start
+            exc = start + (n - 1) * (t["gs"] + sum(w))
+            for j in range(1, n):
+                k = k0 + j
+                offs[k] = read_bits(data, rec, t["gs"])
+                rec += t["gs"]
+                for c in range(d):
+                    q1 = q[k - 1, c]
+                    q2 = q[k - 2, c] if j >= 2 else q1
+                    pred = q1 + ((q1 - q2) * t["predictor"] + 1) // 2
+                    if w[c] == 0:
+                        q[k, c] = pred
+                        continue
+                    r = _signed(read_bits(data, rec, w[c]), w[c])
+                    rec += w[c]
+                    if r == -(1 << (w[c] - 1)):
+                        q[k, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
+                        exc += t["abits"][c]
+                    else:
+                        q[k, c] = pred + r
+        key_frames = np.concatenate(([0], 1 + (np.asarray(set_cells, dtype=np.int64) << t["gs"]) + offs[1:]))
+        t.update(frames=key_frames[: t["K"]], q=q)
+    header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts, group_shift=gshift)
+    return header, descs
+
+
+def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Local rotations (len(x), N, 4), translations and scales (len(x), N, 3) at frame
+    positions x."""
+    header, descs = decode_keys(payload)
     x = np.asarray(x, dtype=np.float64)
-    values, g = [], 0
-    for kind, d, count, vbytes, step, _, _, byte1 in descs:
-        grid, predictor = byte1 & 15, byte1 >> 4
-        cells = gaps[g:g + max(count - 2, 0)]
-        inner = grid * np.cumsum(cells[:, 0]) + cells[:, 1]
-        g += max(count - 2, 0)
-        frames_k = np.concatenate(([0], inner, [frames - 1] if count > 1 else []))
-        q = _values(entropy_decode(payload[pos:pos + vbytes], count * d, d).reshape(count, d),
-                    frames_k.astype(np.int64), predictor)
-        pos += vbytes
-        v = (q.astype(np.float32) * step).astype(np.float64)  # binary32 product, as specified
-        values.append(catmull_rom(frames_k, v, x))
-    n = len(x)
-    rot = np.zeros((n, nodes, 4))
-    rot[..., 3] = 1.0
+    n, nodes = len(x), header["nodes"]
+    values = []
+    for t in descs:
+        v = (t["q"].astype(np.float64) * t["steps"].astype(np.float64)).astype(np.float32).astype(np.float64)
+        values.append(catmull_rom(t["frames"], v, x, split=t["split"]))
+    rot = np.broadcast_to(skeleton.rest_rotations.astype(np.float32).astype(np.float64), (n, nodes, 4)).copy()
     trans = np.broadcast_to(skeleton.offsets.astype(np.float32).astype(np.float64), (n, nodes, 3)).copy()
+    scale = np.broadcast_to(skeleton.rest_scales.astype(np.float32).astype(np.float64), (n, nodes, 3)).copy()
     track = ci = 0
+    consts = header["consts"]
     for i in range(nodes):
-        rm, tm = modes[i] & 3, modes[i] >> 2 & 3
-        if rm == 1:
-            rot[:, i] = consts[ci:ci + 4]
-            ci += 4
-        elif rm == 2:
-            kind, _, _, _, _, ref, axis, _ = descs[track]
-            rot[:, i] = track_rotation(kind, ref, axis, values[track])
-            track += 1
-        if tm == 1:
-            trans[:, i] = consts[ci:ci + 3]
-            ci += 3
-        elif tm == 2:
-            trans[:, i] = values[track]
-            track += 1
-    return rot, trans
+        for m, out, width in ((0, rot, 4), (1, trans, 3), (2, scale, 3)):
+            mode = header["modes"][i] >> (2 * m) & 3
+            if mode == 1:
+                out[:, i] = consts[ci:ci + width]
+                ci += width
+            elif mode == 2:
+                t = descs[track]
+                out[:, i] = track_rotation(t["kind"], t["ref"], t["axis"], values[track]) if m == 0 else values[track]
+                track += 1
+    return rot, trans, scale

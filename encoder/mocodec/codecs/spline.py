@@ -85,6 +85,7 @@ class _Track:
     axis_codes: np.ndarray | None = None  # int16 axis as stored
     quantizer: Quantizer | None = None
     constant: np.ndarray | None = None
+    split: bool = False  # first segment detached (catmull_rom): the capture jumps after frame 0
 
     @property
     def is_rotation(self) -> bool:
@@ -206,7 +207,7 @@ def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
          quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
-    ``grid`` the frames new keys prefer (``fit_keys``)."""
+    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``)."""
     err = _track_error(track)
     frames = len(track.values)
     if track.kind != KIND_TWIST:
@@ -225,7 +226,7 @@ def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
-                                        start=track.keys, grid=grid)
+                                        start=track.keys, grid=grid, split=track.split)
         track.keys, track.key_values, track.quantizer = keys, key_values, qz
         if ok:
             track.fit_error = err(_track_values(track))
@@ -425,6 +426,7 @@ class _ClipFitter:
 
     quantizer_for = staticmethod(Quantizer.for_range)
     key_grid = 1  # SPLN codes key frames as they are
+    split = False  # SPLN has no detached segments
 
     def _mandatory_keys(self) -> np.ndarray:
         """Frames every track keys: the block starts of the SPLN layout."""
@@ -579,6 +581,7 @@ class _ClipFitter:
                 t = _Track(i, KIND_TRANSLATION, tr.copy(), tr, np.zeros(4), np.zeros(3))
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
+            t.split = self.split
             tracks[(i, rot)] = t
             order.append((i, rot))
         row_of = {key: k for k, key in enumerate(zip(self.track_nodes, self.track_is_rot))}
@@ -617,7 +620,7 @@ def _retarget(track: _Track, target: np.ndarray, motion: Motion, node: int) -> N
 def _track_values(track: _Track) -> np.ndarray:
     """The parameter curve the runtime decodes, on every frame (keys must be set)."""
     return catmull_rom(track.keys, track.quantizer.roundtrip(track.key_values),
-                       np.arange(len(track.values), dtype=np.float64))
+                       np.arange(len(track.values), dtype=np.float64), track.split)
 
 
 def _track_recon(track: _Track) -> np.ndarray:
