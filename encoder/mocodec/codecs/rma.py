@@ -3,10 +3,10 @@
 runtime's coder (the lossless back-end the seed delegated to RAR), in one ``RMAL`` section
 (docs/FORMAT.md).
 
-It shares the spline codec's tolerance machinery (compensated top-down fitting, per-track
-budgets, repair through the C runtime) and differs in storage: no block grid forces keys every
-32 frames, key times are coded as entropy-coded gaps, key values as entropy-coded differences
-of lattice integers, and the per-clip tables are compact. The runtime decodes the section once
+It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
+top-down fitting, per-track budgets, repair through the C runtime), and differs in storage: no
+block grid forces keys every 32 frames, key times are coded as entropy-coded gaps, key values
+as entropy-coded differences of lattice integers, and the per-clip tables are compact. The runtime decodes the section once
 at ``mcd_open`` into resident memory (dequantized keys and a seek table) and samples floats.
 
 The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
@@ -19,17 +19,16 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any, Callable
 
 import numpy as np
 
 from ..entropy import entropy_encode
+from ..keyframes import (DIMS, KIND_TRANSLATION, KIND_TWIST, KeyframeFitter, KeyframeSettings, Track,
+                         fit_clip, node_modes)
 from ..motion import Motion
 from ..quantize import StepQuantizer
-from ..tolerance import Tolerance
-from . import CodecOutput, ProgressFn
-from . import spline
-from .spline import DIMS, KIND_TRANSLATION, KIND_TWIST, SplineClipResult, _ClipFitter, _Track, node_modes
+from ..tolerance import ClipCheck
+from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
 
 SECTION_HEADER = 16
 PAYLOAD_HEADER = 32
@@ -38,22 +37,12 @@ DESC_SIZE = {1: 20, 2: 32, 3: 16}
 
 
 @dataclass
-class RMASettings:
-    """Settings of the ``rma`` codec (every length in cm).
+class RMASettings(KeyframeSettings):
+    """Settings of the ``rma`` codec: those of :class:`~mocodec.keyframes.KeyframeSettings`
+    (tolerance, quant_fraction, budget_scales, max_repairs, shell_cm) and
 
     Parameters
     ----------
-    tolerance : Tolerance
-        The promise: max world-space position error per node, every frame.
-    quant_fraction : float, default 0.6
-        Share of a track's error budget given to quantization (the rest to the curve fit).
-    budget_scales : tuple of float, default (6.0,)
-        Global scales tried on the per-track budgets; the smallest payload that meets the
-        tolerance wins (see ``SplineSettings``).
-    max_repairs : int, default 60
-        Rounds of check-through-the-runtime and budget tightening before giving up.
-    shell_cm : float, default 3.0
-        Every rotation is also held to a virtual vertex this far from its joint.
     key_grid : int or None, default None
         Keys prefer multiples of this many frames, so key times cost fewer bits (a key time is
         coded as its grid cell and its offset in the cell, almost always 0); 1 ... 8. None:
@@ -61,21 +50,10 @@ class RMASettings:
         8 % at 1 cm and 4 % at 0.3 cm, and costs 8-13 % at 0.1-0.02 cm, where keys are dense).
     """
 
-    tolerance: Tolerance
-    quant_fraction: float = 0.6
-    budget_scales: tuple[float, ...] = (6.0,)
-    max_repairs: int = 60
-    shell_cm: float = 3.0
     key_grid: int | None = None
 
     def __post_init__(self) -> None:
-        self.quant_fraction = float(self.quant_fraction)
-        if not 0.0 < self.quant_fraction < 1.0:
-            raise ValueError(f"quant_fraction must be in (0, 1), got {self.quant_fraction}")
-        if isinstance(self.budget_scales, (int, float, str)):
-            self.budget_scales = (float(self.budget_scales),)
-        self.budget_scales = tuple(float(x) for x in self.budget_scales)
-        self.max_repairs = int(self.max_repairs)
+        super().__post_init__()
         if self.key_grid is None:
             tightest = self.tolerance.tolerance_cm
             if self.tolerance.effector_tolerance_cm is not None:
@@ -115,7 +93,7 @@ def key_residuals(q: np.ndarray, frames: np.ndarray, predictor: int) -> np.ndarr
     return out
 
 
-def serialize(motion: Motion, tracks: list[_Track], grid_of: int = 1) -> bytes:
+def serialize(motion: Motion, tracks: list[Track], grid_of: int = 1) -> bytes:
     """The ``RMAL`` payload of one clip (resident offset 0; :func:`place` sets it); ``grid_of``
     is the key grid the tracks were fitted on."""
     sk = motion.skeleton
@@ -179,46 +157,35 @@ def place(payloads: list[bytes]) -> list[bytes]:
     return out
 
 
-class _RMAFitter(_ClipFitter):
-    """The spline fitter with free key times and lattice quantization."""
+class RMAFitter(KeyframeFitter):
+    """The key-frame engine with free key times and lattice quantization."""
 
     quantizer_for = staticmethod(StepQuantizer.for_range)
 
     def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings) -> None:
-        super().__init__(motion, cm_per_unit, settings)  # type: ignore[arg-type]
+        super().__init__(motion, cm_per_unit, settings)
         self.key_grid = settings.key_grid
 
-    def _mandatory_keys(self) -> np.ndarray:
+    def mandatory_keys(self) -> np.ndarray:
         return np.unique([0, self.frames - 1])
 
-    def _payload(self, tracks: list[_Track]) -> bytes:
+    def payload(self, tracks: list[Track]) -> bytes:
         return serialize(self.motion, tracks, self.key_grid)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
-                check: Callable[[bytes], np.ndarray]) -> SplineClipResult:
+                check: ClipCheck) -> ClipResult:
     """Encode one clip within the tolerance on every frame (``check``: payload -> error)."""
-    return spline.encode_clip(motion, cm_per_unit, settings, check, _RMAFitter)  # type: ignore[arg-type]
+    return fit_clip(motion, cm_per_unit, settings, check, RMAFitter)
 
 
-def encode(
-    motions: list[Motion],
-    cm_per_unit: list[float],
-    tolerance: Tolerance,
-    check: Callable[..., np.ndarray],
-    options: dict[str, Any],
-    progress: ProgressFn | None = None,
-) -> CodecOutput:
+def encode(motions: list[Motion], cm_per_unit: list[float], settings: RMASettings,
+           check: CheckFn, progress: ProgressFn | None = None) -> CodecOutput:
     """Encode a library: every clip into one ``RMAL`` section."""
-    settings = RMASettings(tolerance=tolerance, **options)
-    one = section_prefix(1)
-    payloads, stats = [], []
-    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, one))
-        payloads.append(r.payload)
-        stats.append({"keys": r.keys, "tracks": r.tracks, "repairs": r.repairs,
-                      "budget_scale": r.scale, "encode_seconds": r.seconds,
-                      "resident_bytes": resident_bytes(r.payload)})
-        if progress:
-            progress(m.name)
-    return CodecOutput(payloads=place(payloads), section_prefix=section_prefix(len(payloads)), stats=stats)
+    out = encode_each_clip(encode_clip, motions, cm_per_unit, settings, check, progress,
+                           prefix=section_prefix(1))
+    for st, payload in zip(out.stats, out.payloads):
+        st["resident_bytes"] = resident_bytes(payload)
+    out.payloads = place(out.payloads)
+    out.section_prefix = section_prefix(len(out.payloads))
+    return out
