@@ -308,7 +308,7 @@ def group_record(b: GroupBasis) -> bytes:
     steps = b"".join(struct.pack("<ff", float(q.minimum[0]), float(q.step[0])) for q in b.axis_q)
     body = head + steps + np.asarray(b.mean_codes, dtype="<u2").tobytes() + _pack12(b.axis_codes)
     assert len(b.mean_codes) == d
-    return body.ljust(rma._align(len(body), 4), b"\0")
+    return body + bytes(-len(body) % 4)  # 4-aligned
 
 
 def joint_table(layout: PP.MarkerLayout) -> bytes:
