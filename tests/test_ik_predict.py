@@ -9,6 +9,7 @@ import struct
 import numpy as np
 import pytest
 
+from mocodec.codecs import ClipResult
 from mocodec.codecs import ik_predict as I
 from mocodec.encode import _single_clip_asset, encode_motions, make_check
 from mocodec.io import read_bvh
@@ -26,7 +27,7 @@ def _sample(sample_paths, name: str) -> Motion:
     return read_bvh(next(p for p in sample_paths if p.stem == name))
 
 
-def _encode_clip(motion: Motion, tol: Tolerance | float, **options) -> I.IkPredictClipResult:
+def _encode_clip(motion: Motion, tol: Tolerance | float, **options) -> ClipResult:
     tol = tol if isinstance(tol, Tolerance) else Tolerance(tol)
     check = make_check([motion], [CM], "ik-predict")
     return I.encode_clip(motion, CM, I.IkPredictSettings(tol, **options), lambda p: check(0, p))

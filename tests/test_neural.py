@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import mocodec_runtime
+from mocodec import codecs
 from mocodec.codecs import neural as N
 from mocodec.encode import EncodeError, _single_clip_asset, encode_motions, make_check
 from mocodec.io import read_bvh
@@ -186,7 +187,7 @@ def test_section_version_1_is_unsupported(encoded):
     data = bytearray(_single_clip_asset(m, CM, "neural", r.payload))
     count = struct.unpack_from("<I", data, 24)[0]
     entries = [32 + 16 * i for i in range(count) if data[32 + 16 * i:36 + 16 * i] == b"NEUR"]
-    assert len(entries) == 1 and struct.unpack_from("<I", data, entries[0] + 4)[0] == N.SECTION_VERSION == 2
+    assert len(entries) == 1 and struct.unpack_from("<I", data, entries[0] + 4)[0] == codecs.get("neural").section_version == 2
     struct.pack_into("<I", data, entries[0] + 4, 1)
     assert mocodec_runtime.validate(bytes(data), skip_checksum=True) == mocodec_runtime.Result.UNSUPPORTED
 

@@ -33,6 +33,12 @@ says what it assumed.
 """
 
 
+def _codec_list() -> str:
+    """The codecs, one line each, from the registry."""
+    width = max(len(n) for n in codecs.available())
+    return "\n".join(f"  {c.name:<{width}}  {c.summary}" for c in codecs.CODECS)
+
+
 class CliError(Exception):
     """A failure to report as one line."""
 
@@ -294,7 +300,7 @@ def _read_asset(path: str) -> bytes:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    from .container import CODEC_NAMES, read_summary
+    from .container import read_summary
     from .runtime import Asset, validate
 
     data = _read_asset(args.asset)
@@ -306,7 +312,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         meta = summary.meta.get("clips", {}).get(c.name, {})
         raw = meta.get("raw_bvh_bytes")
         clips.append({
-            "name": c.name, "codec": CODEC_NAMES.get(c.codec, str(c.codec)), "frames": c.frame_count,
+            "name": c.name, "codec": _codec_name(c.codec), "frames": c.frame_count,
             "frame_rate": round(float(c.frame_rate), 4), "duration_s": round(float(c.duration), 4),
             "skeleton": c.skeleton, "nodes": c.node_count,
             "max_error_cm": meta.get("max_error_cm"), "mean_error_cm": meta.get("mean_error_cm"),
@@ -344,6 +350,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _codec_name(codec_id: int) -> str:
+    codec = codecs.by_id(codec_id)
+    return codec.name if codec else str(codec_id)
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Encode the bundled sample clips, decode them through the C runtime, report."""
     samples = Path(__file__).resolve().parent / "samples"
@@ -372,10 +383,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="BVH files or folders of BVH files (one clip each)")
-    p.add_argument("--codec", default="rma", choices=codecs.available(),
-                   help="codec (default: %(default)s, the smallest that meets the tolerance: a "
-                        "whole library in one section; spline samples in place without resident "
-                        "memory)")
+    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+                   help="codec, one of: %(choices)s (default: %(default)s, the smallest that "
+                        "meets the tolerance: a whole library in one section; spline samples in "
+                        "place without resident memory; `mocodec --help` describes each)")
     p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
                    help="max world-space position error of any joint or end site on any frame, "
                         "in cm (default: %(default)s)")
@@ -406,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mocodec",
         description="Compress motion capture (BVH) into compact .mcd assets that the mocodec C "
                     "runtime samples inside a game engine, with a promised max error.",
-        epilog=EPILOG,
+        epilog=EPILOG + "\ncodecs:\n" + _codec_list() + "\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mocodec {__version__}")
@@ -445,7 +456,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "
                                    "runtime, print ratio and error.")
-    p.add_argument("--codec", default="rma", choices=codecs.available())
+    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+                   help="codec, one of: %(choices)s (default: %(default)s)")
     p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
     p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
                    help="where to write the asset and decoded BVH (default: %(default)s)")

@@ -1,5 +1,6 @@
 """Writing and reading the asset container (docs/FORMAT.md): header, section table, skeleton
-and clip-directory sections, META. Codec payloads are opaque bytes here.
+and clip-directory sections, META. Codec payloads are opaque bytes here; a codec's id, section
+kind and section version come from the codec registry (:mod:`mocodec.codecs`).
 
 The runtime is the judge of an asset's validity; :func:`read_sections` only parses enough for
 the tools (``mocodec info``) and checks bounds as it goes.
@@ -14,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from . import codecs
 from .motion import Skeleton
 
 MAGIC = b"\x89MCD\r\n\x1a\n"
@@ -24,14 +26,6 @@ SKEL_VERSION = 2
 CLIP_VERSION = 2
 SKEL_NODE_SIZE = 56
 NODE_JOINT, NODE_END_SITE, NODE_VIRTUAL = 0, 1, 2
-
-CODEC_IDS = {"spline": 1, "rma": 2, "ik-predict": 3, "fk-wavelet": 4, "neural": 5, "rma-pca": 6}
-CODEC_NAMES = {v: k for k, v in CODEC_IDS.items()}
-CODEC_SECTION_KINDS = {"spline": b"SPLN", "rma": b"RMAL", "rma-pca": b"RMAP", "ik-predict": b"IKPR",
-                       "fk-wavelet": b"FKWV", "neural": b"NEUR"}
-# Section layout versions other than 1 (docs/FORMAT.md): NEUR 2 holds windowed networks;
-# RMAL 2, FKWV 2 and RMAP 2 are sampled in place (format 2.0).
-CODEC_SECTION_VERSIONS = {"neural": 2, "rma": 2, "fk-wavelet": 2, "rma-pca": 2}
 
 
 class ContainerError(ValueError):
@@ -101,7 +95,7 @@ def clip_section(entries: list[ClipEntry], section_index: dict[str, int],
         duration = np.float32((e.frame_count - 1) / float(rate))
         out += struct.pack(
             "<IIIIIIIffIII",
-            name_off, e.skeleton, CODEC_IDS[e.codec], section_index[e.codec], off,
+            name_off, e.skeleton, codecs.get(e.codec).id, section_index[e.codec], off,
             len(e.payload), e.frame_count, float(rate), float(duration), 0, need, 0,
         )
     return bytes(out + strings)
@@ -171,13 +165,14 @@ class AssetBuilder:
                 blob.append(0)
             payload_offsets.append(len(blob))
             blob += e.payload
-        for codec, blob in blobs.items():
-            codec_section[codec] = len(sections)
-            sections.append(Section(CODEC_SECTION_KINDS[codec], bytes(blob), CODEC_SECTION_VERSIONS.get(codec, 1)))
+        for name, blob in blobs.items():
+            codec = codecs.get(name)
+            codec_section[name] = len(sections)
+            sections.append(Section(codec.section_kind, bytes(blob), codec.section_version))
         # Each clip record states the scratch its codec needs, computed by the runtime itself.
         from .runtime import clip_scratch_size  # the runtime binding, imported only to build
         skel_bytes = [sections[i].data for i in range(len(self.skeletons))]
-        scratch = [clip_scratch_size(CODEC_IDS[e.codec], bytes(blobs[e.codec]), off, len(e.payload),
+        scratch = [clip_scratch_size(codecs.get(e.codec).id, bytes(blobs[e.codec]), off, len(e.payload),
                                      skel_bytes[e.skeleton], e.frame_count, float(np.float32(e.frame_rate)))
                    for e, off in zip(self.clips, payload_offsets)]
         sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets, scratch),

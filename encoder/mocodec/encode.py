@@ -18,7 +18,7 @@ from .kinematics import forward_kinematics
 from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
 from .motion import Motion
 from .runtime import Asset, decode_world
-from .tolerance import Tolerance
+from .tolerance import Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .units import UnitsChoice
@@ -115,16 +115,14 @@ def encode_motions(
     tolerance = tolerance or Tolerance(1.0)
     for m in motions:
         m.validate()
-    encode = codecs.get(codec)
+    entry = codecs.get(codec)
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
     check = make_check(motions, cm, codec)
     try:
-        out = encode(motions, cm, tolerance, check, dict(options or {}), progress)
-    except Exception as exc:
-        if type(exc).__name__ == "ToleranceNotMet":
-            raise EncodeError(f"cannot meet the tolerance: {exc}") from None
-        raise
+        out = entry.encode(motions, cm, tolerance, check, options, progress)
+    except ToleranceNotMet as exc:
+        raise EncodeError(f"cannot meet the tolerance: {exc}") from None
     builder = AssetBuilder()
     if out.section_prefix:
         builder.codec_prefix[codec] = out.section_prefix

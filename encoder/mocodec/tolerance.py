@@ -1,5 +1,6 @@
 """The tolerance promise: per-node position tolerances, their split into per-track error
-budgets, and the repair step that tightens budgets where the runtime's check fails.
+budgets, the repair step that tightens budgets where the runtime's check fails, the loop every
+codec meets its tolerance with, and the one error a codec raises when it cannot.
 
 The user promises a world-space position error (cm) for every joint and end site on every
 frame, optionally tighter for end effectors. A track (a node's rotation or translation curve)
@@ -13,12 +14,21 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from .motion import Skeleton
 
 EFFECTOR_PATTERN = re.compile(r"hand|foot|toe|head|wrist|ankle|finger|thumb", re.IGNORECASE)
+
+ClipCheck = Callable[[bytes], np.ndarray]
+"""``check(payload) -> (F, N)``: the world position error of a clip payload, in file units,
+decoded by the C runtime (:func:`mocodec.encode.make_check`)."""
+
+
+class ToleranceNotMet(RuntimeError):
+    """A codec could not reach the requested tolerance (every codec raises this one type)."""
 
 
 def effector_nodes(skeleton: Skeleton) -> np.ndarray:
@@ -133,3 +143,48 @@ def tighten(
         changed.append(t)
     return changed
 
+
+
+# --------------------------------------------------------------------------- meeting it
+def within(errors_units: np.ndarray, tolerance_units: np.ndarray) -> bool:
+    """True when every error is within its tolerance (``tolerance_units`` (N,) per node, or
+    (F, N) per frame and node)."""
+    return bool(np.all(errors_units <= tolerance_units))
+
+
+@dataclass
+class Attempt:
+    """The end of :func:`meet_tolerance`: the last payload coded, its error through the
+    runtime (F, N), the adjustments made before it, and whether it is within tolerance."""
+
+    payload: bytes
+    errors_units: np.ndarray
+    adjustments: int
+    met: bool
+
+    def worst(self, tolerance_units: np.ndarray) -> float:
+        """The largest ratio of error to tolerance."""
+        return float(np.max(self.errors_units / tolerance_units))
+
+
+def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units: np.ndarray,
+                   adjust: Callable[[np.ndarray], object], rounds: int) -> Attempt:
+    """Code, check through the runtime, adjust where the error is over, until it is not.
+
+    The loop the codecs that refine a coding share: ``code()`` writes the payload from the
+    codec's current parameters, ``check`` measures it, ``adjust(errors)`` changes the
+    parameters where ``errors`` exceed ``tolerance_units`` (it may raise
+    :class:`ToleranceNotMet` when it cannot). At most ``rounds`` adjustments; the returned
+    attempt says whether the last payload met the tolerance. What each codec adjusts is its
+    own: spline and rma tighten per-track budgets and refit keys, fk-wavelet lowers step codes
+    (and raises the ROI gain), neural adds weight bits. ik-predict does not refine: it searches
+    one step scale for the pass/fail edge, and only shares :func:`within`.
+    """
+    for n in range(rounds + 1):
+        payload = code()
+        errors = check(payload)
+        if within(errors, tolerance_units):
+            return Attempt(payload, errors, n, True)
+        if n < rounds:
+            adjust(errors)
+    return Attempt(payload, errors, rounds, False)

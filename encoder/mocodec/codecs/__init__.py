@@ -1,25 +1,62 @@
-"""The codecs. Each turns motions into clip payloads for its section of the asset.
+"""The codecs, in one registry: the only Python table of codec names, ids, section kinds and
+section versions (the C runtime keeps its own, ``runtime_c/src/codecs.c``; a test holds the two
+together). :mod:`mocodec.container` and the command line read it.
 
-A codec module provides ``encode(motions, cm_per_unit, tolerance, check, options, progress)``
-returning a :class:`CodecOutput`. ``check`` (from :mod:`mocodec.encode`) decodes a payload
-through the C runtime and returns the world-space error, so every codec measures what an
-engine will see.
+A codec is a :class:`Codec`: its module provides a settings type (a dataclass whose first field
+is the :class:`~mocodec.tolerance.Tolerance`; every other setting has a default) and either
+
+* ``encode_clip(motion, cm_per_unit, settings, check) -> ClipResult`` for a codec that codes
+  each clip on its own (``check(payload)``: the clip's world error through the runtime), or
+* ``encode(motions, cm_per_unit, settings, check, progress) -> CodecOutput`` for a codec whose
+  section holds data the clips share (``check(i, payload, prefix)``: clip ``i`` in a one-clip
+  section that starts with ``prefix``).
+
+A codec that cannot meet the tolerance raises :class:`~mocodec.tolerance.ToleranceNotMet`.
+Adding a codec is one row in :data:`CODECS` (and one in the runtime's table).
+
+>>> get("rma").section_kind, get("neural").section_version
+(b'RMAL', 2)
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from dataclasses import dataclass, field
+from types import ModuleType
 from typing import Any, Callable
 
 import numpy as np
 
 from ..motion import Motion
-from ..tolerance import Tolerance
+from ..tolerance import Tolerance, ToleranceNotMet  # noqa: F401  (the codecs' one error type)
 
-CheckFn = Callable[[int, bytes], np.ndarray]
-"""check(clip_index, payload) -> (F, N) world position error in file units."""
+CheckFn = Callable[..., np.ndarray]
+"""``check(clip_index, payload, prefix=b"") -> (F, N)`` world position error in file units,
+decoded by the C runtime (:func:`mocodec.encode.make_check`)."""
 
 ProgressFn = Callable[[str], None]
+
+
+@dataclass
+class ClipResult:
+    """One clip encoded.
+
+    Attributes
+    ----------
+    payload : bytes
+        The clip's bytes in its codec's section.
+    errors_units : ndarray (F, N)
+        World position error through the runtime, file units.
+    stats : dict
+        What the encoder did, reported per clip (numbers and lists, JSON-ready).
+    seconds : float
+        Encoding time.
+    """
+
+    payload: bytes
+    errors_units: np.ndarray
+    stats: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
 
 
 @dataclass
@@ -33,65 +70,119 @@ class CodecOutput:
     settings: dict[str, Any] = field(default_factory=dict)  # recorded in the asset's META
 
 
+@dataclass(frozen=True)
+class Codec:
+    """One codec.
+
+    Parameters
+    ----------
+    name : str
+        The name users give (``mocodec encode --codec NAME``).
+    id : int
+        Its id in the clip directory (``mcd_codec`` in ``mocodec.h``).
+    section_kind : bytes
+        The FourCC of the section that holds its payloads.
+    section_version : int
+        The layout version of that section (docs/FORMAT.md).
+    module : str
+        The module under :mod:`mocodec.codecs` that implements it (imported when used).
+    settings_name : str
+        Its settings type, a class of that module.
+    per_clip : bool
+        True: the module's ``encode_clip`` codes one clip at a time; False: its ``encode``
+        codes the library.
+    summary : str
+        One line for ``--help``.
+    """
+
+    name: str
+    id: int
+    section_kind: bytes
+    section_version: int
+    module: str
+    settings_name: str
+    per_clip: bool
+    summary: str
+
+    @property
+    def implementation(self) -> ModuleType:
+        return importlib.import_module(f"{__name__}.{self.module}")
+
+    @property
+    def settings_type(self) -> type:
+        return getattr(self.implementation, self.settings_name)
+
+    def settings(self, tolerance: Tolerance, **options: Any) -> Any:
+        """The codec's settings object for ``tolerance`` and ``options`` (setting name ->
+        value); an option the codec does not have is named in a :class:`TypeError`, a value
+        out of range in a :class:`ValueError`."""
+        kind = self.settings_type
+        names = [f.name for f in dataclasses.fields(kind) if f.name != "tolerance"]
+        unknown = sorted(set(options) - set(names))
+        if unknown:
+            raise TypeError(f"codec {self.name!r} has no setting {', '.join(map(repr, unknown))}; "
+                            f"its settings: {', '.join(names)}")
+        return kind(tolerance=tolerance, **options)
+
+    def encode(self, motions: list[Motion], cm_per_unit: list[float], tolerance: Tolerance,
+               check: CheckFn, options: dict[str, Any] | None = None,
+               progress: ProgressFn | None = None) -> CodecOutput:
+        """Encode ``motions`` (one clip each) into this codec's payloads."""
+        settings = self.settings(tolerance, **(options or {}))
+        if not self.per_clip:
+            return self.implementation.encode(motions, cm_per_unit, settings, check, progress)
+        return encode_each_clip(self.implementation.encode_clip, motions, cm_per_unit, settings,
+                                check, progress)
+
+
+def encode_each_clip(encode_clip: Callable[..., ClipResult], motions: list[Motion],
+                     cm_per_unit: list[float], settings: Any, check: CheckFn,
+                     progress: ProgressFn | None = None, prefix: bytes = b"") -> CodecOutput:
+    """Run ``encode_clip`` on every clip (checked in a one-clip section starting with
+    ``prefix``) and collect payloads and stats."""
+    out = CodecOutput(payloads=[])
+    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
+        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, prefix))
+        out.payloads.append(r.payload)
+        out.stats.append({**r.stats, "encode_seconds": r.seconds})
+        if progress:
+            progress(m.name)
+    return out
+
+
+CODECS: tuple[Codec, ...] = (
+    Codec("spline", 1, b"SPLN", 1, "spline", "SplineSettings", True,
+          "per-joint Catmull-Rom keys on a block grid; samples in place, no resident memory"),
+    Codec("rma", 2, b"RMAL", 2, "rma", "RMASettings", False,
+          "seed 003: keys placed freely in time, lattice quantization, sampled in place, one section"),
+    Codec("rma-pca", 6, b"RMAP", 2, "rma_pca", "RmaPcaSettings", False,
+          "seed 003's PCA of virtual markers per behaviour group (--pca-variance; no error bound)"),
+    Codec("neural", 5, b"NEUR", 2, "neural", "NeuralSettings", True,
+          "seed 001: a small network from time to pose per window of frames"),
+    Codec("fk-wavelet", 4, b"FKWV", 2, "fk_wavelet", "FkWaveletSettings", True,
+          "seed 000 FKBC: 9/7 wavelet per channel with forward-kinematics compensation"),
+    Codec("ik-predict", 3, b"IKPR", 1, "ik_predict", "IkPredictSettings", True,
+          "seed 000 IKBP: closed-loop inverse-kinematics prediction of joint angles"),
+)
+"""Every codec (NEUR 2: windowed networks; NEUR 1 was never released)."""
+
+_BY_NAME = {c.name: c for c in CODECS}
+_BY_ID = {c.id: c for c in CODECS}
+
+
 def available() -> list[str]:
-    return list(_REGISTRY)
+    """The codec names, in the registry's order."""
+    return [c.name for c in CODECS]
 
 
-def get(name: str) -> Callable[..., CodecOutput]:
+def get(name: str) -> Codec:
+    """The codec called ``name``; a ValueError listing the codecs for any other name."""
     try:
-        return _REGISTRY[name]
+        return _BY_NAME[name]
     except KeyError:
         raise ValueError(f"unknown codec {name!r}; available: {', '.join(available())}") from None
 
 
-def _per_clip(module: str, settings_class: str, stats: Callable[[Any], dict[str, Any]]):
-    """A codec entry point for codecs that encode each clip on its own: build the codec's
-    settings object from the options, encode clip by clip, collect payloads and stats."""
-
-    def encode(
-        motions: list[Motion],
-        cm_per_unit: list[float],
-        tolerance: Tolerance,
-        check: CheckFn,
-        options: dict[str, Any],
-        progress: ProgressFn | None = None,
-    ) -> CodecOutput:
-        codec = importlib.import_module(f"{__name__}.{module}")
-        settings = getattr(codec, settings_class)(tolerance=tolerance, **options)
-        out = CodecOutput(payloads=[])
-        for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-            r = codec.encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload))
-            out.payloads.append(r.payload)
-            out.stats.append(stats(r))
-            if progress:
-                progress(m.name)
-        return out
-
-    return encode
-
-
-def _library(module: str):
-    """A codec entry point for codecs that encode the whole library at once (one section
-    with shared data): the module's own ``encode``."""
-
-    def encode(*args: Any, **kwargs: Any) -> CodecOutput:
-        return importlib.import_module(f"{__name__}.{module}").encode(*args, **kwargs)
-
-    return encode
-
-
-_REGISTRY: dict[str, Callable[..., CodecOutput]] = {
-    "spline": _per_clip("spline", "SplineSettings", lambda r: {
-        "keys": r.keys, "tracks": r.tracks, "repairs": r.repairs, "budget_scale": r.scale,
-        "encode_seconds": r.seconds}),
-    "rma": _library("rma"),
-    "rma-pca": _library("rma_pca"),
-    "neural": _per_clip("neural", "NeuralSettings", lambda r: {
-        "windows": [[w["start"], w["frames"], w["K"], w["bits"]] for w in r.windows],
-        "frequencies": r.frequency_counts, "parameters": r.parameters, "splits": r.splits,
-        "encode_seconds": r.seconds}),
-    "fk-wavelet": _per_clip("fk_wavelet", "FkWaveletSettings", lambda r: {
-        "levels": r.levels, "tracks": r.tracks, "repairs": r.repairs, "encode_seconds": r.seconds}),
-    "ik-predict": _per_clip("ik_predict", "IkPredictSettings", lambda r: {
-        "step_scale": r.scale, "checks": r.checks, "chains": r.chains, "encode_seconds": r.seconds}),
-}
+def by_id(codec_id: int) -> Codec | None:
+    """The codec with clip-directory id ``codec_id``, or None."""
+    return _BY_ID.get(codec_id)

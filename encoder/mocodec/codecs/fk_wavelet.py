@@ -16,8 +16,8 @@ the band streams decodes to a coarser motion (progressive decoding, §4).
 
 Forward-kinematics compensation (§4.3): joints are coded parents first; a joint's rotation
 target is re-solved against its parent's *decoded* pose so that it re-aims its children at
-their original positions (the Wahba fit of the spline codec's ``_ClipFitter``), so a parent's
-quantization error is not carried down the chain.
+their original positions (:class:`mocodec.keyframes.Compensation`, the Wahba fit the key-frame
+codecs use too), so a parent's quantization error is not carried down the chain.
 
 The encoder meets a world-space tolerance on every frame of every node as measured by the C
 runtime: encode, check, lower the step codes of the tracks that move failing nodes, repeat.
@@ -27,15 +27,16 @@ from __future__ import annotations
 import struct
 import time
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
 from .. import rotations as R
 from ..entropy import MAX_ABS, entropy_decode, entropy_encode
+from ..keyframes import Compensation
 from ..motion import Motion, Skeleton
-from ..tolerance import Tolerance, ancestors_matrix, effector_nodes, initial_budgets
-from .spline import SplineSettings, _ClipFitter
+from ..tolerance import (Attempt, ClipCheck, Tolerance, ToleranceNotMet, ancestors_matrix,
+                         effector_nodes, initial_budgets, meet_tolerance)
+from . import ClipResult
 
 ROT_IDENTITY, ROT_QUATERNION = 0, 2
 TRANS_REST, TRANS_CHANNELS = 0, 2
@@ -55,10 +56,6 @@ DELTA = np.float32(0.44350687)
 SCALE = np.float32(1.2301741)
 INV_SCALE = np.float32(0.81289306)
 MANTISSA = np.array([1.0, 1.1892071, 1.4142135, 1.6817929], dtype=np.float32)
-
-
-class ToleranceNotMet(RuntimeError):
-    """The encoder could not reach the requested tolerance."""
 
 
 # ------------------------------------------------------------------------ the transform
@@ -460,35 +457,21 @@ class FkWaveletSettings:
     roi_max_gain: int = 14
 
 
-@dataclass
-class FkWaveletClipResult:
-    payload: bytes
-    errors_units: np.ndarray
-    repairs: int
-    levels: int
-    tracks: int
-    seconds: float
-
-
-CheckFn = Callable[[bytes], np.ndarray]
-
-
 class _Encoder:
     def __init__(self, motion: Motion, cm_per_unit: float, settings: FkWaveletSettings) -> None:
         self.motion = motion
         self.settings = settings
         self.frames = motion.frame_count
         sk = motion.skeleton
-        self.fitter = _ClipFitter(motion, cm_per_unit,
-                                  SplineSettings(tolerance=settings.tolerance, shell_cm=settings.shell_cm))
+        self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
         self.tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
         self.levels = max_levels(self.frames, min(settings.max_levels, MAX_LEVELS))
         self.bcodes = band_codes(self.frames, self.levels, settings.band_tilt)
-        budgets = initial_budgets(self.fitter.reach, self.tol_units, settings.budget_scale)
+        budgets = initial_budgets(self.compensation.reach, self.tol_units, settings.budget_scale)
         self._setup_roi(cm_per_unit)
         self.tracks: dict[tuple[int, bool], _Track] = {}
         self.rows: dict[tuple[int, bool], int] = {}
-        for k, (i, rot) in enumerate(zip(self.fitter.track_nodes, self.fitter.track_is_rot)):
+        for k, (i, rot) in enumerate(zip(self.compensation.track_nodes, self.compensation.track_is_rot)):
             if rot:
                 q = motion.rotations[:, i]
                 if np.all(q == q[0]) and np.array_equal(q[0], [0.0, 0.0, 0.0, 1.0]):
@@ -553,7 +536,7 @@ class _Encoder:
             t = self.tracks.get((i, True))
             if t is not None:
                 if self.settings.compensate:
-                    target = self.fitter._rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
+                    target = self.compensation.rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
                 else:
                     target = self.motion.rotations[:, i]
                 target = R.quat_make_continuous(target)
@@ -583,7 +566,7 @@ class _Encoder:
                 background = over & ~self.roi_cells
         ratio = np.max(np.where(background, errors / self.tol_fn, 0.0), axis=0)  # (N,)
         failing = ratio > 1.0
-        reach = self.fitter.reach
+        reach = self.compensation.reach
         for key, t in self.tracks.items():
             k = self.rows[key]
             hit = failing & reach.affects[k]
@@ -602,7 +585,7 @@ class _Encoder:
         error to tolerance over the points a track moves most under ``below``. Returns
         whether any code changed."""
         ratio = np.max(errors / self.tol_fn, axis=0)  # (N,)
-        reach = self.fitter.reach
+        reach = self.compensation.reach
         changed = False
         for key, t in self.tracks.items():
             k = self.rows[key]
@@ -635,24 +618,16 @@ def roi_band_masks(frames: int, levels: int, roi_frames: np.ndarray) -> list[np.
     return out
 
 
-def _meet(enc: _Encoder, check: CheckFn, rounds: int) -> tuple[bytes, np.ndarray, int] | None:
-    """Code, check through the runtime and refine until every node is within tolerance;
-    None when ``rounds`` refinements do not get there."""
-    for repair in range(rounds + 1):
-        payload = enc.code_pass()
-        errors = check(payload)
-        if np.all(errors <= enc.tol_fn):
-            return payload, errors, repair
-        if repair < rounds:
-            enc.refine(errors)
-    enc.last_errors = errors
-    return None
+def _meet(enc: _Encoder, check: ClipCheck, rounds: int) -> Attempt:
+    """Code, check through the runtime and refine until every node is within tolerance, at
+    most ``rounds`` refinements (:func:`mocodec.tolerance.meet_tolerance`)."""
+    return meet_tolerance(enc.code_pass, check, enc.tol_fn, enc.refine, rounds)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
-                check: CheckFn) -> FkWaveletClipResult:
+                check: ClipCheck) -> ClipResult:
     """Encode one clip so that every node's error measured by ``check`` (through the C
-    runtime) is within the tolerance on every frame.
+    runtime) is within the tolerance on every frame (stats: levels, tracks, repairs).
 
     From the initial per-track steps the encoder refines until the clip passes, then tries
     coarser steps for every track at once (``settings.coarsen`` codes, one quarter octave each,
@@ -660,20 +635,19 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
     started = time.perf_counter()
     enc = _Encoder(motion, cm_per_unit, settings)
     found = _meet(enc, check, settings.max_repairs)
-    if found is None:
-        worst = float(np.max(enc.last_errors / enc.tol_fn))
-        raise ToleranceNotMet(f"{motion.name}: still {worst:.3f}x over the tolerance after "
+    if not found.met:
+        raise ToleranceNotMet(f"{motion.name}: still {found.worst(enc.tol_fn):.3f}x over the tolerance after "
                               f"{settings.max_repairs} refinements")
-    best, best_errors, repairs = found
+    best, best_errors, repairs = found.payload, found.errors_units, found.adjustments
     best_codes = {k: t.code for k, t in enc.tracks.items()}
     for _ in range(settings.coarsen_tries):
         for k, t in enc.tracks.items():
             t.code = best_codes[k] + settings.coarsen
         found = _meet(enc, check, settings.coarsen_repairs)
-        if found is None or len(found[0]) >= len(best):
+        if not found.met or len(found.payload) >= len(best):
             break
-        best, best_errors, r = found
-        repairs += r + 1
+        best, best_errors = found.payload, found.errors_units
+        repairs += found.adjustments + 1
         best_codes = {k: t.code for k, t in enc.tracks.items()}
     # Then track by track: coarser steps where a track's points keep headroom.
     for _ in range(settings.relax_tries):
@@ -682,10 +656,10 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: FkWaveletSettings,
         if not enc.relax(best_errors, settings.relax_below):
             break
         found = _meet(enc, check, settings.coarsen_repairs)
-        if found is None or len(found[0]) >= len(best):
+        if not found.met or len(found.payload) >= len(best):
             break
-        best, best_errors, r = found
-        repairs += r + 1
+        best, best_errors = found.payload, found.errors_units
+        repairs += found.adjustments + 1
         best_codes = {k: t.code for k, t in enc.tracks.items()}
-    return FkWaveletClipResult(best, best_errors, repairs, enc.levels, len(enc.tracks),
-                               time.perf_counter() - started)
+    return ClipResult(best, best_errors, {"levels": enc.levels, "tracks": len(enc.tracks), "repairs": repairs},
+                      time.perf_counter() - started)

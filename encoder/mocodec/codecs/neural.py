@@ -30,7 +30,8 @@ from .. import rotations as R
 from ..bitpack import BitWriter
 from ..kinematics import forward_kinematics, halfway_world, lever_arms
 from ..motion import Motion
-from ..tolerance import Tolerance
+from ..tolerance import ClipCheck, Tolerance, ToleranceNotMet, meet_tolerance
+from . import ClipResult
 
 try:
     from threadpoolctl import threadpool_limits
@@ -39,7 +40,6 @@ except ImportError:  # pragma: no cover - optional: only makes training faster
 
 ROT_IDENTITY, ROT_CONSTANT, ROT_QUATERNION, ROT_AXIS_ANGLE = 0, 1, 2, 3
 TRANS_REST, TRANS_OUTPUT = 0, 2
-SECTION_VERSION = 2  # container.CODEC_SECTION_VERSIONS: windowed networks
 HEADER_SIZE = 16
 NODE_ENTRY = 8
 WINDOW_ENTRY = 16
@@ -48,10 +48,6 @@ MAX_K = 32            # format limit on frequencies (docs/FORMAT.md)
 MAX_WEIGHT = 1.0e4    # format bound on |dequantized weight|
 MAX_ABS_VALUE = 1.0e7
 TENSORS = ("W0", "b0", "W1", "b1", "W2", "b2")
-
-
-class ToleranceNotMet(RuntimeError):
-    """The network could not reach the tolerance within the frequency / iteration caps."""
 
 
 @dataclass
@@ -64,7 +60,7 @@ class NeuralSettings:
         Max world-space position error per node, every frame (cm).
     max_frequencies : int, default 3
         Cap on K per window; a window that misses the tolerance with K frequencies is halved
-        (a two-frame window that misses raises :class:`ToleranceNotMet`).
+        (a two-frame window that misses raises :class:`~mocodec.tolerance.ToleranceNotMet`).
     window_frames : int, default 240
         Longest first window (frames); windows are only ever split further.
     jump_cm : float, default 20
@@ -550,18 +546,13 @@ def reference_pose(payload: bytes, motion: Motion, x: np.ndarray) -> tuple[np.nd
 
 # ------------------------------------------------------------------------ Algorithm 1
 @dataclass
-class NeuralClipResult:
-    payload: bytes
-    errors_units: np.ndarray
-    windows: list[dict[str, object]]   # per window: start, frames, K, freqs, bits, stages, seconds
-    parameters: int                    # trained weights over all windows
-    splits: int                        # windows that missed within the K cap and were halved
-    seconds: float
-    history: list[dict[str, float]] = field(default_factory=list)
+class NeuralClipResult(ClipResult):
+    """A clip encoded (stats: windows as [start, frames, K, bits], frequencies, parameters,
+    splits), with the search's trace: every window in full (start, frames, K, freqs, bits,
+    stages, seconds) and every stage of Algorithm 1 (``history``)."""
 
-    @property
-    def frequency_counts(self) -> list[int]:
-        return [int(w["K"]) for w in self.windows]
+    windows: list[dict[str, object]] = field(default_factory=list)
+    history: list[dict[str, float]] = field(default_factory=list)
 
 
 def _normalisation(layout: PoseLayout) -> tuple[np.ndarray, np.ndarray]:
@@ -618,7 +609,7 @@ def initial_windows(world: np.ndarray, cm_per_unit: float, window_frames: int, j
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
-                check: Callable[[bytes], np.ndarray],
+                check: ClipCheck,
                 on_stage: Callable[[dict[str, float]], None] | None = None) -> NeuralClipResult:
     """The clip in windows, Algorithm 1 per window (adaptive split: a window that misses the
     tolerance within the K cap is halved), then the whole payload checked through the runtime
@@ -670,23 +661,29 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
             done.append((w, p, {"start": s, "frames": n, "K": len(w.freqs), "freqs": list(w.freqs),
                                 "bits": w.net.bits, "stages": stages, "seconds": time.perf_counter() - t0}))
         model = NeuralModel(frames, sk.node_count, layout, scale, offset, [d[0] for d in done])
-        while True:
-            payload = write_payload(model)
-            c_err = check(payload)
-            over = np.any(c_err > tol_units[None, :], axis=1)
-            if not over.any():
-                break
+
+        def more_bits(errors: np.ndarray) -> None:
             # The Python model met the tolerance with a margin: a miss here is a rounding
             # difference on a frame at the edge; one more bit for the windows holding it.
+            over = np.any(errors > tol_units[None, :], axis=1)
             for i in np.unique(model.window_index(np.flatnonzero(over))):
                 w, p, info = done[i]
                 if w.net.bits >= settings.max_bits:
                     raise ToleranceNotMet(f"{motion.name}: window at frame {w.start} misses through the runtime")
                 w.net = quantize(p, w.net.bits + 1)
                 info["bits"] = w.net.bits
-    params = sum(_pack(d[1]).size for d in done)
-    return NeuralClipResult(payload, c_err, [d[2] for d in done], params, splits,
-                            time.perf_counter() - started, history)
+
+        # Each round adds a bit to some window until one is at max_bits: this bounds the rounds.
+        rounds = len(done) * (settings.max_bits - settings.min_bits + 1)
+        attempt = meet_tolerance(lambda: write_payload(model), check, tol_units, more_bits, rounds)
+        if not attempt.met:
+            raise ToleranceNotMet(f"{motion.name}: misses through the runtime after {rounds} rounds of weight bits")
+    windows = [d[2] for d in done]
+    stats = {"windows": [[w["start"], w["frames"], w["K"], w["bits"]] for w in windows],
+             "frequencies": [int(w["K"]) for w in windows], "parameters": sum(_pack(d[1]).size for d in done),
+             "splits": splits}
+    return NeuralClipResult(attempt.payload, attempt.errors_units, stats, time.perf_counter() - started,
+                            windows=windows, history=history)
 
 
 def _fit_window(s: int, n: int, z: np.ndarray, layout: PoseLayout, scale: np.ndarray, offset: np.ndarray,

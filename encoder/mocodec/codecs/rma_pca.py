@@ -25,22 +25,21 @@ from __future__ import annotations
 import struct
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
 
 import numpy as np
 
 from ..curves import catmull_rom, fit_keys
+from ..keyframes import KIND_TRANSLATION, Track
 from ..motion import Motion, Skeleton
 from ..quantize import Quantizer, StepQuantizer
 from ..rma import pca as P
 from ..rma import preprocess as PP
+from ..rma import repeats as RP
 from ..rma import segment as S
 from ..tolerance import Tolerance
-from . import CodecOutput, ProgressFn
+from . import CheckFn, CodecOutput, ProgressFn
 from . import rma
-from ..rma import repeats as RP
 from .rma_reference import decode_payload
-from .spline import KIND_TRANSLATION, _Track
 
 SECTION_HEADER = 32
 JOINT_RECORD = 24
@@ -236,7 +235,7 @@ def _pseudo_motion(nodes: int, frames: int, frame_time: float) -> Motion:
     return Motion(sk, rot, np.zeros((frames, nodes, 3)), frame_time, "curves")
 
 
-def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> _Track:
+def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> Track:
     """One scalar (or 3-vector) curve as an ``rma`` translation track within ``budget`` on
     every frame (max abs deviation per component)."""
     values = np.asarray(values, dtype=np.float64)
@@ -252,14 +251,14 @@ def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: f
     keys, kv, _ = fit_keys(values, np.full(frames, budget * 1.0000001),
                            lambda r: np.max(np.abs(r - values), axis=1), mandatory, q.roundtrip,
                            grid=grid if frames > 4 * grid else 1)
-    t = _Track(node=node, kind=KIND_TRANSLATION, values=values, target=values,
+    t = Track(node=node, kind=KIND_TRANSLATION, values=values, target=values,
                ref=np.zeros(4), axis=np.zeros(3))
     t.keys, t.key_values, t.quantizer = keys, kv, q
     return t
 
 
 def curve_set(curves: list[np.ndarray], budgets: list[float], frame_time: float,
-              s: RmaPcaSettings, first: list[_Track] | None = None) -> bytes:
+              s: RmaPcaSettings, first: list[Track] | None = None) -> bytes:
     """An ``RMAL`` payload whose node ``i`` translation carries ``curves[i]`` (after the tracks
     ``first``, already fitted, which take the first nodes)."""
     first = first or []
@@ -269,7 +268,7 @@ def curve_set(curves: list[np.ndarray], budgets: list[float], frame_time: float,
     return rma.serialize(_pseudo_motion(len(tracks), frames, frame_time), tracks, s.key_grid)
 
 
-def track_curve(t: _Track) -> np.ndarray:
+def track_curve(t: Track) -> np.ndarray:
     """What the decoder evaluates for a fitted track's first component, on every frame."""
     x = np.arange(len(t.values), dtype=np.float64)
     return catmull_rom(t.keys, t.quantizer.roundtrip(t.key_values), x)[:, 0]
@@ -309,7 +308,7 @@ def group_record(b: GroupBasis) -> bytes:
     steps = b"".join(struct.pack("<ff", float(q.minimum[0]), float(q.step[0])) for q in b.axis_q)
     body = head + steps + np.asarray(b.mean_codes, dtype="<u2").tobytes() + _pack12(b.axis_codes)
     assert len(b.mean_codes) == d
-    return body.ljust(rma._align(len(body), 4), b"\0")
+    return body + bytes(-len(body) % 4)  # 4-aligned
 
 
 def joint_table(layout: PP.MarkerLayout) -> bytes:
@@ -420,16 +419,9 @@ def repetition_plan(pieces: list[Piece], flats: list[np.ndarray], bases: list[Gr
 
 
 # ------------------------------------------------------------------------ entry point
-def encode(
-    motions: list[Motion],
-    cm_per_unit: list[float],
-    tolerance: Tolerance,
-    check: Callable[..., np.ndarray],
-    options: dict[str, Any],
-    progress: ProgressFn | None = None,
-) -> CodecOutput:
+def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, check: CheckFn,
+           progress: ProgressFn | None = None) -> CodecOutput:
     """Encode a library into one ``RMAP`` section (no tolerance promise: see the module)."""
-    s = RmaPcaSettings(tolerance=tolerance, **options)
     started = time.perf_counter()
     if len(set(cm_per_unit)) != 1:
         raise ValueError("rma-pca codes one library in one unit: the clips' units differ")

@@ -2,276 +2,49 @@
 quantization (seed 003 §5.1-5.2 applied per joint, before PCA), bit-packed as docs/FORMAT.md's
 ``SPLN`` payload.
 
-A track is one node's rotation (modified Rodrigues parameters relative to the clip's mean
-rotation; or an unwrapped twist angle plus MRPs for a node that keeps turning round) or its
-translation (only nodes with position channels). The encoder meets a world-space tolerance on
-every frame: it splits the tolerance into per-track budgets (``tolerance.py``), fits each track
-until its own error is within budget, then checks the whole clip through the C runtime and
-tightens the budgets where a point still misses, until nothing does.
+The fitting is the key-frame engine's (:mod:`mocodec.keyframes`: compensated top-down fitting,
+per-track budgets, repair through the C runtime); this module is the storage: every block of
+2**block_shift frames starts with a key of every track, so the runtime samples the asset's own
+bytes with no resident memory.
 """
 from __future__ import annotations
 
 import struct
-import time
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
-from .. import rotations as R
 from ..bitpack import BitWriter
-from ..curves import catmull_rom, fit_keys
-from ..kinematics import forward_kinematics
+from ..keyframes import DIMS, KIND_TWIST, KeyframeFitter, KeyframeSettings, Track, fit_clip, node_modes
 from ..motion import Motion
-from ..quantize import Quantizer
-from ..tolerance import Tolerance, TrackReach, ancestors_matrix, initial_budgets, tighten
-
-KIND_MRP, KIND_TWIST, KIND_TRANSLATION = 1, 2, 3
-DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3}
-TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
-
-
-class ToleranceNotMet(RuntimeError):
-    """The encoder could not reach the requested tolerance."""
+from ..tolerance import ClipCheck
+from . import ClipResult
 
 
 @dataclass
-class SplineSettings:
-    """Settings of the ``spline`` codec (every length in cm).
+class SplineSettings(KeyframeSettings):
+    """Settings of the ``spline`` codec: those of :class:`~mocodec.keyframes.KeyframeSettings`
+    (tolerance, quant_fraction, budget_scales, max_repairs, shell_cm) and
 
     Parameters
     ----------
-    tolerance : Tolerance
-        The promise: max world-space position error per node, every frame.
     block_shift : int, default 5
         Blocks of 2**block_shift frames; every block start is a key of every track.
-    quant_fraction : float, default 0.6
-        Share of a track's error budget given to quantization (the rest to the curve fit).
-        Measured on dev clips: 0.4 and 0.6 tie at 1 cm; 0.6 is 2-4 % smaller at 0.1-0.02 cm.
-    budget_scales : tuple of float, default (6.0,)
-        Global scales tried on the per-track budgets (1 = worst-case additive errors); the
-        smallest payload that meets the tolerance wins. Errors along a chain rarely add up
-        worst-case, and compensation keeps them from compounding: on the CMU dev clips 6
-        needs few repair rounds, 8 many for no gain.
-    max_repairs : int, default 60
-        Rounds of check-through-the-runtime and budget tightening before giving up.
-    shell_cm : float, default 3.0
-        Every rotation is also held to a virtual vertex this far from its joint.
     """
 
-    tolerance: Tolerance
     block_shift: int = 5
-    quant_fraction: float = 0.6
-    budget_scales: tuple[float, ...] = (6.0,)
-    max_repairs: int = 60
-    shell_cm: float = 3.0
 
 
-@dataclass
-class _Track:
-    node: int
-    kind: int
-    values: np.ndarray        # (F, d) parameters on every frame
-    target: np.ndarray        # (F, 4) original local rotation or (F, 3) translation
-    ref: np.ndarray           # (4,) reference quaternion (float32-exact), rotations only
-    axis: np.ndarray          # (3,) twist axis (float32-exact), kind 2 only
-    budget: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    base_budget: float = 0.0
-    quant_scale: float = 1.0
-    keys: np.ndarray | None = None  # None: folded to a constant
-    key_values: np.ndarray | None = None  # (K, d) before quantization
-    fit_error: np.ndarray | None = None   # (F,) error of the current fit per frame
-    ref_codes: np.ndarray | None = None   # int16 MRPs of ``ref`` as stored
-    axis_codes: np.ndarray | None = None  # int16 axis as stored
-    quantizer: Quantizer | None = None
-    constant: np.ndarray | None = None
-    split: bool = False  # first segment detached (catmull_rom): the capture jumps after frame 0
-
-    @property
-    def is_rotation(self) -> bool:
-        return self.kind != KIND_TRANSLATION
-
-
-@dataclass
-class SplineClipResult:
-    payload: bytes
-    errors_units: np.ndarray  # (F, N) world position error through the runtime
-    keys: int                 # keys over all tracks
-    tracks: int
-    repairs: int
-    scale: float
-    seconds: float
-
-
-# ------------------------------------------------------------------------ track construction
-def _f32_exact(a: np.ndarray) -> np.ndarray:
-    return np.asarray(a, dtype=np.float32).astype(np.float64)
-
-
-def _reference(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Store a reference rotation as int16 MRPs and return (codes, the quaternion the runtime
-    expands them to, computed in binary32 exactly as the C code does)."""
-    q = np.asarray(q, dtype=np.float64)
-    if q[3] < 0:
-        q = -q
-    codes = np.clip(np.rint(R.mrp_from_quat(q) * 32767.0), -32767, 32767).astype(np.int16)
-    p = codes.astype(np.float32) / np.float32(32767.0)
-    s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
-    inv = np.float32(1.0) / (np.float32(1.0) + s)
-    ref = np.array([np.float32(2.0) * p[0] * inv, np.float32(2.0) * p[1] * inv,
-                    np.float32(2.0) * p[2] * inv, (np.float32(1.0) - s) * inv], dtype=np.float32)
-    return codes, ref.astype(np.float64)
-
-
-def _axis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Store a unit axis as int16 and return (codes, the normalised axis the runtime uses)."""
-    a = np.asarray(a, dtype=np.float64)
-    codes = np.clip(np.rint(a / np.linalg.norm(a) * 32767.0), -32767, 32767).astype(np.int16)
-    f = codes.astype(np.float32) / np.float32(32767.0)
-    n2 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]
-    inv = np.float32(1.0) / np.sqrt(n2, dtype=np.float32)
-    return codes, (f * inv).astype(np.float32).astype(np.float64)
-
-
-def _twist_axis(motion: Motion, node: int, rel: np.ndarray) -> np.ndarray:
-    """Axis for a node that turns round: world up (Y, BVH's convention) for a root; otherwise
-    the dominant direction of its rotation vectors."""
-    if motion.skeleton.parents[node] < 0:
-        return np.array([0.0, 1.0, 0.0])
-    half = np.arctan2(np.linalg.norm(rel[:, :3], axis=1), rel[:, 3])
-    vec = rel[:, :3] / np.maximum(np.linalg.norm(rel[:, :3], axis=1, keepdims=True), 1e-12) * (2 * half)[:, None]
-    _, _, vt = np.linalg.svd(vec, full_matrices=False)
-    return vt[0]
-
-
-def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> _Track:
-    """A rotation track for local rotations ``q`` (F, 4) of ``node``."""
-    q = R.quat_make_continuous(q)
-    ref_codes, ref = _reference(R.quat_mean(q))
-    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), q))
-    if np.mean(rel[:, 3]) < 0:
-        rel = -rel
-    p = R.mrp_from_quat(rel)
-    if np.max(np.linalg.norm(p, axis=1)) <= TWIST_MRP_LIMIT:
-        return _Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes)
-    axis_codes, axis = _axis(_twist_axis(motion, node, rel))
-    # Swing-twist: q = twist(axis, theta) * rest, theta unwrapped so it may exceed a turn.
-    half = np.unwrap(np.arctan2(q[:, :3] @ axis, q[:, 3]))
-    theta = 2.0 * half
-    rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(axis, theta)), q)
-    rest = R.quat_make_continuous(rest)
-    ref_codes, ref = _reference(R.quat_mean(rest))
-    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), rest))
-    if np.mean(rel[:, 3]) < 0:
-        rel = -rel
-    values = np.concatenate((theta[:, None], R.mrp_from_quat(rel)), axis=1)
-    return _Track(node, KIND_TWIST, values, q, ref, axis, ref_codes=ref_codes, axis_codes=axis_codes)
-
-
-def _track_rotations(track: _Track, values: np.ndarray) -> np.ndarray:
-    """Local rotations (F, 4) a track's parameter values decode to."""
-    if track.kind == KIND_MRP:
-        return R.quat_multiply(track.ref, R.quat_from_mrp(values))
-    tw = R.quat_from_axis_angle(track.axis, values[:, 0])
-    return R.quat_multiply(tw, R.quat_multiply(track.ref, R.quat_from_mrp(values[:, 1:])))
-
-
-def _track_error(track: _Track) -> Callable[[np.ndarray], np.ndarray]:
-    """Per-frame error of a reconstruction: rotation angle (rad) or translation distance."""
-    if track.kind == KIND_TRANSLATION:
-        return lambda recon: np.linalg.norm(recon - track.target, axis=1)
-    return lambda recon: R.quat_angle(track.target, _track_rotations(track, recon))
-
-
-# ------------------------------------------------------------------------ fitting
-def _quant_steps(track: _Track, fraction: float) -> np.ndarray:
-    """Largest quantization step per component whose worst case stays within ``fraction``
-    of the track's base budget (angle for rotations: |dq| <= 4|dp| for MRPs)."""
-    b = fraction * track.base_budget * track.quant_scale
-    if track.kind == KIND_TRANSLATION:
-        return np.full(3, 2.0 * b / np.sqrt(3.0))
-    if track.kind == KIND_MRP:
-        return np.full(3, b / (2.0 * np.sqrt(3.0)))
-    # Twist: half the share to the angle (error = step / 2), half to the MRPs.
-    return np.array([b, *np.full(3, 0.5 * b / (2.0 * np.sqrt(3.0)))])
-
-
-def _constant_value(track: _Track) -> np.ndarray:
-    if track.kind == KIND_TRANSLATION:
-        lo, hi = track.values.min(axis=0), track.values.max(axis=0)
-        return _f32_exact(0.5 * (lo + hi))
-    return track.ref  # exactly what the runtime expands the stored codes to
-
-
-def _fit(track: _Track, mandatory: np.ndarray, fraction: float,
-         quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
-    """Fold the track to a constant if that is within budget, else place its keys.
-    ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
-    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``)."""
-    err = _track_error(track)
-    frames = len(track.values)
-    if track.kind != KIND_TWIST:
-        const = _constant_value(track)
-        recon = np.broadcast_to(const if track.kind == KIND_TRANSLATION else np.zeros(3), (frames, 3))
-        dev = err(recon)
-        if np.all(dev <= track.budget):
-            track.keys, track.quantizer, track.constant = None, None, const
-            track.fit_error = dev
-            return
-    track.constant = None
-    while True:
-        step = _quant_steps(track, fraction)
-        try:
-            qz = quantizer_for(track.values.min(axis=0), track.values.max(axis=0), step)
-        except ValueError as exc:
-            raise ToleranceNotMet(f"node {track.node}: {exc}") from None
-        keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
-                                        start=track.keys, grid=grid, split=track.split)
-        track.keys, track.key_values, track.quantizer = keys, key_values, qz
-        if ok:
-            track.fit_error = err(_track_values(track))
-            return
-        if track.quant_scale < 1e-4:
-            raise ToleranceNotMet(f"node {track.node}: quantization cannot reach the budget")
-        track.quant_scale *= 0.5  # keys on every failing frame and still over: finer steps
-
-
+# ------------------------------------------------------------------------ serialization
 # ------------------------------------------------------------------------ serialization
 def _block_starts(frames: int, shift: int) -> np.ndarray:
     blocks = (frames - 1 + (1 << shift) - 1) // (1 << shift) + 1
     return np.minimum(np.arange(blocks, dtype=np.int64) << shift, frames - 1)
 
 
-def node_modes(motion: Motion, tracks: list[_Track]) -> tuple[list[tuple[int, int, int, int]], list[float], list[_Track]]:
-    """How each node is stored, shared by the key-frame codecs: per node (rotation_mode,
-    translation_mode, rotation_index, translation_index) as docs/FORMAT.md's SPLN node table
-    (0 rest/identity, 1 constant, 2 animated), the f32 constants, and the animated tracks in
-    node order (rotation before translation)."""
-    sk = motion.skeleton
-    animated = [t for t in tracks if t.keys is not None]
-    index = {id(t): i for i, t in enumerate(animated)}
-    constants: list[float] = []
-    rows = []
-    by_node: dict[tuple[int, bool], _Track] = {(t.node, t.is_rotation): t for t in tracks}
-    for i in range(sk.node_count):
-        rot = by_node.get((i, True))
-        tr = by_node.get((i, False))
-        rm, ri, tm, ti = 0, 0, 0, 0
-        if rot is not None and rot.keys is not None:
-            rm, ri = 2, index[id(rot)]
-        elif rot is not None and not np.array_equal(rot.constant, [0, 0, 0, 1]):
-            rm, ri = 1, len(constants)
-            constants.extend(rot.constant.tolist())
-        if tr is not None and tr.keys is not None:
-            tm, ti = 2, index[id(tr)]
-        elif tr is not None and not np.array_equal(tr.constant, _f32_exact(sk.offsets[i])):
-            tm, ti = 1, len(constants)
-            constants.extend(tr.constant.tolist())
-        rows.append((rm, tm, ri, ti))
-    return rows, constants, animated
 
 
-def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
+def serialize(motion: Motion, tracks: list[Track], shift: int) -> bytes:
     """The ``SPLN`` payload of a clip (docs/FORMAT.md)."""
     sk = motion.skeleton
     frames = motion.frame_count
@@ -311,7 +84,7 @@ def serialize(motion: Motion, tracks: list[_Track], shift: int) -> bytes:
     ])
 
 
-def _pack_blocks(tracks: list[_Track], qvals: list[np.ndarray], starts: np.ndarray,
+def _pack_blocks(tracks: list[Track], qvals: list[np.ndarray], starts: np.ndarray,
                  shift: int) -> tuple[bytes, list[int]]:
     """The bit stream and block table. Fields are generated per track with numpy, tagged
     with (block, track, position) and put in stream order with one sort."""
@@ -369,268 +142,18 @@ def _pack_blocks(tracks: list[_Track], qvals: list[np.ndarray], starts: np.ndarr
 
 
 # ------------------------------------------------------------------------ encoding one clip
-CheckFn = Callable[[bytes], np.ndarray]
-"""Maps a clip payload to the world-space error (F, N) in file units, through the runtime."""
+class SplineFitter(KeyframeFitter):
+    """The key-frame engine on the SPLN block grid (key frames coded as they are)."""
 
-
-def encode_clip(
-    motion: Motion,
-    cm_per_unit: float,
-    settings: SplineSettings,
-    check: CheckFn,
-    fitter_class: type | None = None,
-) -> SplineClipResult:
-    """Encode one clip so that every node's error, measured by ``check``, is within the
-    tolerance on every frame; the smallest payload over ``settings.budget_scales`` wins.
-    ``fitter_class`` (a ``_ClipFitter`` subclass) lets another key-frame codec reuse this."""
-    started = time.perf_counter()
-    fitter = (fitter_class or _ClipFitter)(motion, cm_per_unit, settings)
-    best: SplineClipResult | None = None
-    failures = []
-    for scale in settings.budget_scales:
-        try:
-            result = fitter.run(scale, check)
-        except ToleranceNotMet as exc:
-            failures.append(str(exc))
-            continue
-        if best is None or len(result.payload) < len(best.payload):
-            best = result
-    if best is None:
-        raise ToleranceNotMet(f"clip {motion.name!r}: " + "; ".join(failures))
-    best.seconds = time.perf_counter() - started
-    return best
-
-
-def _wahba(v: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Per frame, the rotation Q minimising sum_k w_k |Q v_k - u_k|^2 (SVD solution).
-
-    ``v``, ``u``: (F, K, 3); ``w``: (K,). Returns quaternions (F, 4)."""
-    b = np.einsum("k,fki,fkj->fij", w, u, v)
-    uu, _, vt = np.linalg.svd(b)
-    d = np.sign(np.linalg.det(uu @ vt))
-    m = np.ones((len(b), 3))
-    m[:, 2] = d
-    rot = uu @ (m[:, :, None] * vt)
-    return R.quat_from_matrix(rot)
-
-
-class _ClipFitter:
-    """Top-down fitting with error compensation (the idea of seed 000's FKBC).
-
-    Nodes are fitted parents first. A joint's rotation target is not its original local
-    rotation but the one that, applied to its *decoded* parent, best re-aims its children at
-    their original positions (a Wahba fit over its child points, plus virtual vertices at the
-    shell distance that fix the twist). A parent's error then moves its children but is not
-    carried on down the chain, so each rotation only answers for its own bones.
-    """
-
-    quantizer_for = staticmethod(Quantizer.for_range)
-    key_grid = 1  # SPLN codes key frames as they are
-    split = False  # SPLN has no detached segments
-
-    def _mandatory_keys(self) -> np.ndarray:
-        """Frames every track keys: the block starts of the SPLN layout."""
+    def mandatory_keys(self) -> np.ndarray:
+        """The block starts of the SPLN layout."""
         return _block_starts(self.frames, self.settings.block_shift)
 
-    def _payload(self, tracks: list[_Track]) -> bytes:
+    def payload(self, tracks: list[Track]) -> bytes:
         return serialize(self.motion, tracks, self.settings.block_shift)
 
-    def __init__(self, motion: Motion, cm_per_unit: float, settings: SplineSettings) -> None:
-        self.motion = motion
-        self.settings = settings
-        sk = motion.skeleton
-        self.frames = motion.frame_count
-        self.rot_w, self.pos_w = forward_kinematics(sk, motion.rotations, motion.translations)
-        self.cm_per_unit = cm_per_unit
-        self.tol_units = settings.tolerance.per_node_cm(sk) / cm_per_unit
-        self.shell = settings.shell_cm / cm_per_unit
-        self.mandatory = self._mandatory_keys()
-        self.has_rot = [bool(sk.rotation_order(i)) for i in range(sk.node_count)]
-        self.has_trans = [bool(sk.position_axes(i)) for i in range(sk.node_count)]
-        self.aim = [self._aim_points(i) for i in range(sk.node_count)]
-        nodes, is_rot = [], []
-        for i in range(sk.node_count):
-            if self.has_rot[i]:
-                nodes.append(i)
-                is_rot.append(True)
-            if self.has_trans[i]:
-                nodes.append(i)
-                is_rot.append(False)
-        self.track_nodes, self.track_is_rot = nodes, is_rot
-        self.reach = self._reach()
 
-    def _aim_points(self, i: int) -> list[int]:
-        """The nearest descendants in each branch that sit away from node i (skipping
-        zero-length bones): the points i's rotation aims."""
-        sk = self.motion.skeleton
-        out: list[int] = []
-        stack = sk.children(i)
-        while stack:
-            c = stack.pop(0)
-            d = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
-            if d > 1e-6:
-                out.append(c)
-            else:
-                stack.extend(sk.children(c))
-        return out
-
-    def _reach(self):
-        """Which points each track moves, and by how much per unit of its error. A rotation
-        moves its aim points and their subtrees by the bone length (compensation below keeps
-        it from growing further), and a shell vertex of its own."""
-        sk = self.motion.skeleton
-        anc = ancestors_matrix(sk)
-        t = len(self.track_nodes)
-        affects = np.zeros((t, sk.node_count), dtype=bool)
-        lever = np.zeros((t, sk.node_count))
-        for k, (i, rot) in enumerate(zip(self.track_nodes, self.track_is_rot)):
-            if not rot:
-                affects[k, anc[i]] = True
-                lever[k, anc[i]] = 1.0
-                continue
-            affects[k, i] = True
-            lever[k, i] = self.shell
-            for c in self.aim[i]:
-                bone = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
-                below = anc[c]
-                affects[k, below] = True
-                lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
-        return TrackReach(affects, lever, np.asarray(self.track_is_rot))
-
-    # -------------------------------------------------------------- targets
-    def _rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray) -> np.ndarray:
-        """Local rotation (F, 4) that best places node i's aim points given the decoded
-        parent rotation and the decoded position of i."""
-        orig = self.rot_w[:, i]
-        vs, us, ws = [], [], []
-        inv = R.quat_conjugate(orig)
-        for c in self.aim[i]:
-            vs.append(R.quat_rotate(inv, self.pos_w[:, c] - self.pos_w[:, i]))
-            us.append(self.pos_w[:, c] - pos_i)
-            ws.append(1.0)
-        for k in range(3):
-            e = np.zeros(3)
-            e[k] = self.shell
-            vs.append(np.broadcast_to(e, (self.frames, 3)))
-            us.append(R.quat_rotate(orig, e))
-            ws.append(0.25 if self.aim[i] else 1.0)
-        world = _wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws))
-        world = R.quat_make_continuous(np.where((np.sum(world * orig, axis=1) < 0)[:, None], -world, world))
-        if parent_rot is None:
-            return world
-        return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
-
-    # -------------------------------------------------------------- passes
-    def _fit_pass(self, tracks: dict[tuple[int, bool], _Track], refit: set[tuple[int, bool]]) -> None:
-        """Walk the nodes parents first; refit a track when asked to or when its parent's
-        decoded pose changed since the last pass."""
-        sk = self.motion.skeleton
-        n = sk.node_count
-        rot_d = np.empty((self.frames, n, 4))
-        pos_d = np.empty((self.frames, n, 3))
-        moved = np.zeros(n, dtype=bool)
-        for i in range(n):
-            p = sk.parents[i]
-            parent_moved = p >= 0 and moved[p]
-            # Translation.
-            key = (i, False)
-            if key in tracks:
-                t = tracks[key]
-                if key in refit or t.keys is None and t.constant is None:
-                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
-                local_t = _track_recon(t)
-            else:
-                local_t = np.broadcast_to(_f32_exact(sk.offsets[i]), (self.frames, 3))
-            if p < 0:
-                pos_d[:, i] = local_t
-            else:
-                pos_d[:, i] = pos_d[:, p] + R.quat_rotate(rot_d[:, p], local_t)
-            # Rotation.
-            key = (i, True)
-            if key in tracks:
-                t = tracks[key]
-                if key in refit or parent_moved or t.target is None:
-                    target = self._rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
-                    _retarget(t, target, self.motion, i)
-                    _fit(t, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
-                local_q = _track_recon(t)
-            elif self.has_rot[i]:
-                local_q = self.motion.rotations[:, i]  # exactly identity on every frame
-            else:
-                local_q = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (self.frames, 4))
-            rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
-            prev = self._decoded
-            moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i]) and np.array_equal(prev[1][:, i], pos_d[:, i]))
-        self._decoded = (rot_d, pos_d)
-
-    def run(self, scale: float, check: CheckFn) -> SplineClipResult:
-        sk = self.motion.skeleton
-        budgets0 = initial_budgets(self.reach, self.tol_units, scale)
-        tracks: dict[tuple[int, bool], _Track] = {}
-        order = []
-        for i, rot, b in zip(self.track_nodes, self.track_is_rot, budgets0):
-            if rot:
-                q = self.motion.rotations[:, i]
-                if np.all(q == q[0]) and np.array_equal(q[0], [0.0, 0.0, 0.0, 1.0]):
-                    continue  # identity on every frame: nothing to store
-                t = _Track(i, KIND_MRP, np.zeros((self.frames, 3)), None, np.zeros(4), np.zeros(3))
-            else:
-                tr = self.motion.translations[:, i]
-                if np.all(tr == _f32_exact(sk.offsets[i])):
-                    continue
-                t = _Track(i, KIND_TRANSLATION, tr.copy(), tr, np.zeros(4), np.zeros(3))
-            t.base_budget = float(b)
-            t.budget = np.full(self.frames, float(b))
-            t.split = self.split
-            tracks[(i, rot)] = t
-            order.append((i, rot))
-        row_of = {key: k for k, key in enumerate(zip(self.track_nodes, self.track_is_rot))}
-        reach_rows = [row_of[key] for key in order]
-        reach = TrackReach(self.reach.affects[reach_rows], self.reach.lever[reach_rows],
-                           self.reach.is_rotation[reach_rows])
-        self._decoded = None
-        self._fit_pass(tracks, set(order))
-        for repair in range(self.settings.max_repairs + 1):
-            payload = self._payload(list(tracks.values()))
-            errors = check(payload)
-            if np.all(errors <= self.tol_units[None, :]):
-                keys = sum(len(t.keys) for t in tracks.values() if t.keys is not None)
-                return SplineClipResult(payload, errors, keys, len(tracks), repair, scale, 0.0)
-            if repair == self.settings.max_repairs:
-                break
-            budgets = [tracks[k].budget for k in order]
-            changed = tighten(budgets, reach, errors, self.tol_units)
-            self._fit_pass(tracks, {order[c] for c in changed})
-        worst = float(np.max(errors / self.tol_units[None, :]))
-        raise ToleranceNotMet(
-            f"scale {scale}: still {worst:.3f}x over the tolerance after {self.settings.max_repairs} repairs"
-        )
-
-
-def _retarget(track: _Track, target: np.ndarray, motion: Motion, node: int) -> None:
-    """Rebuild a rotation track's parameter values for a new local target."""
-    fresh = _rotation_track_from(target, motion, node)
-    if fresh.kind != track.kind:
-        track.keys = None  # the old keys belong to another parameterisation
-    track.kind, track.values, track.target, track.ref, track.axis = (
-        fresh.kind, fresh.values, fresh.target, fresh.ref, fresh.axis)
-    track.ref_codes, track.axis_codes = fresh.ref_codes, fresh.axis_codes
-
-
-def _track_values(track: _Track) -> np.ndarray:
-    """The parameter curve the runtime decodes, on every frame (keys must be set)."""
-    return catmull_rom(track.keys, track.quantizer.roundtrip(track.key_values),
-                       np.arange(len(track.values), dtype=np.float64), track.split)
-
-
-def _track_recon(track: _Track) -> np.ndarray:
-    """What the runtime decodes for a track on every frame: local rotation or translation."""
-    frames = len(track.values)
-    if track.keys is None:
-        if track.kind == KIND_TRANSLATION:
-            return np.broadcast_to(track.constant, (frames, 3))
-        return np.broadcast_to(track.constant, (frames, 4))
-    values = _track_values(track)
-    if track.kind == KIND_TRANSLATION:
-        return values
-    return _track_rotations(track, values)
+def encode_clip(motion: Motion, cm_per_unit: float, settings: SplineSettings,
+                check: ClipCheck) -> ClipResult:
+    """Encode one clip within the tolerance on every frame (``check``: payload -> error)."""
+    return fit_clip(motion, cm_per_unit, settings, check, SplineFitter)
