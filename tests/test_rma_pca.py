@@ -1,7 +1,9 @@
-"""Codec rma-pca (seed 003's subspace representation, ``--pca-variance``): the error it reaches
-is reported and falls as the variance kept grows; C and the Python reference decoder agree;
-pieces in several groups decode across their borders; random = sequential access; bad bytes
-are rejected at open; the CLI routes ``--codec rma --pca-variance``."""
+"""Codec rma-pca (seed 003's subspace representation, ``--pca-variance``, RMAP version 2): the
+error it reaches is reported and falls as the variance kept grows; C and the Python reference
+decoder agree; pieces in several groups decode across their borders; sequential, random and
+backward sampling agree bit for bit; sampling reads only the clip's bytes and the section's
+shared part; the scratch stays small; truncated or corrupt bytes are rejected or decode
+finite; the CLI routes ``--codec rma --pca-variance``."""
 from __future__ import annotations
 
 import json
@@ -14,6 +16,7 @@ import pytest
 
 from mocodec.codecs.rma_pca import RmaPcaSettings
 from mocodec.codecs.rma_pca_reference import decode_clip
+from mocodec.container import AssetBuilder, ClipEntry
 from mocodec.encode import encode_motions
 from mocodec.io import read_bvh
 from mocodec.kinematics import forward_kinematics
@@ -115,7 +118,7 @@ def test_pieces_cover_the_clip_and_decode_across_borders(library):
     a = Asset(result.asset)
     for m, (_, payload) in zip(motions, payloads):
         pieces = struct.unpack_from("<I", payload, 8)[0]
-        starts = [struct.unpack_from("<I", payload, 24 + 8 * p)[0] for p in range(pieces)]
+        starts = [struct.unpack_from("<I", payload, 16 + 16 * p)[0] for p in range(pieces)]
         for s in starts[1:]:
             # Just before, on and just after a border: C and the reference agree.
             x = np.array([s - 1, s - 0.5, s - 0.01, s, s + 0.5])
@@ -155,18 +158,86 @@ def test_repeated_pieces_decode_alike_in_c_and_python(samples, library):
     assert np.array_equal(seq, rand)
 
 
-def test_random_access_matches_sequential(library):
-    motions, result = library
-    a = Asset(result.asset)
-    m = motions[-1]
-    times = np.arange(0, m.frame_count - 1, 0.37) / m.frame_rate
-    seq = np.stack([a.sample(m.name, t) for t in times])
-    rng = np.random.default_rng(3)
-    order = rng.permutation(len(times))
-    rand = np.empty_like(seq)
+@pytest.fixture(scope="module")
+def repeats(library):
+    motions, _ = library
+    return _encode(motions, groups=2, variance=0.98, repeats=True)
+
+
+def _poses_in_order(asset: Asset, name: str, times: np.ndarray, order: np.ndarray) -> np.ndarray:
+    out = np.empty((len(times), *asset.sample(name, 0.0).shape), dtype=np.float32)
     for i in order:
-        rand[i] = a.sample(m.name, times[i])
-    assert np.array_equal(seq, rand)
+        out[i] = asset.sample(name, times[i])
+    return out
+
+
+@pytest.mark.parametrize("which", ["direct", "repeats"])
+def test_sequential_random_and_backward_sampling_agree_bit_for_bit(library, repeats, which):
+    motions, direct = library
+    result = direct if which == "direct" else repeats
+    a = Asset(result.asset)
+    rng = np.random.default_rng(3)
+    for m in motions:
+        times = np.arange(0, m.frame_count - 1, 0.37) / m.frame_rate
+        n = len(times)
+        seq = _poses_in_order(a, m.name, times, np.arange(n))
+        assert np.array_equal(seq, _poses_in_order(a, m.name, times, rng.permutation(n))), m.name
+        assert np.array_equal(seq, _poses_in_order(a, m.name, times, np.arange(n)[::-1])), m.name
+        # Each pose on a scratch that another clip used last: prepared afresh every time.
+        other = motions[0].name if m.name != motions[0].name else motions[1].name
+        for i in rng.permutation(n)[:40]:
+            a.sample(other, 0.5)
+            assert np.array_equal(seq[i], a.sample(m.name, times[i])), (m.name, times[i])
+
+
+def test_sampling_reads_only_the_clip_and_the_shared_part(library, repeats):
+    """Open the bytes, then overwrite everything a clip's sampling may not read (other clips'
+    payloads): its poses do not change by a bit. It reads the container's header, table, SKEL
+    and CLIP, the RMAP section's shared part (bases, shared curve sets) and its own payload."""
+    from mocodec_runtime import OPEN_PREVALIDATED, ffi, lib
+
+    motions, direct = library
+    for result in (direct, repeats):
+        data = result.asset
+        section, payloads = _rmap(data)
+        sec_off = next(s for s in _sections(data) if s[0] == b"RMAP")[2]
+        shared_end = struct.unpack_from("<I", section, 24)[0]
+        for c, m in enumerate(motions):
+            own_at, own = payloads[c]
+            buf = bytearray(data)
+            mem = ffi.from_buffer(buf)
+            asset = ffi.new("mcd_asset*")
+            assert lib.mcd_open(mem, len(buf), OPEN_PREVALIDATED, asset) == 0
+            size = lib.mcd_scratch_size(asset)
+            raw = ffi.new("uint8_t[]", size + 16)
+            scratch = raw + (-int(ffi.cast("uintptr_t", raw)) % 16)
+            assert lib.mcd_scratch_init(asset, scratch, size) == 0
+            times = np.linspace(0.0, (m.frame_count - 1) / m.frame_rate, 97)
+            pose = ffi.new("mcd_transform[]", m.skeleton.node_count)
+
+            def poses() -> np.ndarray:
+                out = []
+                for t in times:
+                    assert lib.mcd_sample(asset, c, float(t), 0, pose, m.skeleton.node_count, scratch) == 0
+                    out.append(np.frombuffer(ffi.buffer(pose), dtype=np.float32).copy())
+                return np.stack(out)
+
+            before = poses()
+            info = ffi.new("mcd_clip_info*")
+            assert lib.mcd_get_clip_info(asset, c, info) == 0
+            assert (info.data_offset, info.data_size) == (own_at, len(own))
+            for i in range(sec_off + shared_end, sec_off + len(section)):
+                if not own_at <= i < own_at + len(own):
+                    buf[i] ^= 0xA5
+            lib.mcd_scratch_init(asset, scratch, size)
+            assert np.array_equal(before, poses()), m.name
+
+
+def test_scratch_is_small(repeats):
+    """Issue 15: an engine holds the asset and a scratch per playing instance, a few KB."""
+    a = Asset(repeats.asset)
+    for clip in a.clips:
+        assert clip.scratch_size <= 32 * 1024, (clip.name, clip.scratch_size)
 
 
 def test_six_dof_root_path(samples):
@@ -187,36 +258,77 @@ def test_six_dof_root_path(samples):
     assert np.abs(pos_c - pos_r).max() * CM < 5e-3
 
 
-def test_corrupt_sections_are_rejected_or_decode_finite(library):
-    motions, result = library
-    data = bytearray(result.asset)
-    sections = _sections(bytes(data))
-    sec = next(s for s in sections if s[0] == b"RMAP")
+@pytest.fixture(scope="module")
+def small(samples):
+    """Two short clips in two groups, with repeats: every part of the format in a few KB."""
+    motions = [samples[0].slice(1, 200), _mixed(samples).slice(150, 330)]
+    motions[1].name = "mixed_short"
+    return motions, _encode(motions, groups=2, variance=0.9, repeats=True)
+
+
+def test_corrupt_bytes_are_rejected_or_decode_finite(small):
+    """A bit flipped anywhere in the section: rejected, or every sample finite. Code values
+    (basis codes, key residuals) may take any value, so many flips stay valid; a flip of the
+    section header, its offset tables or a clip payload's header never does."""
+    motions, result = small
+    data = result.asset
+    sec = next(s for s in _sections(data) if s[0] == b"RMAP")
+    section, payloads = _rmap(data)
+    _, groups, _, joints, _, shared, _, _ = struct.unpack_from("<8I", section)
+    structural = set(range(sec[2], sec[2] + 32))
+    structural |= set(range(sec[2] + 32 + 24 * joints, sec[2] + 32 + 24 * joints + 4 * (groups + shared)))
+    for at, _ in payloads:
+        structural |= set(range(at, at + 16))
     rng = np.random.default_rng(11)
-    positions = np.concatenate((np.arange(sec[2], sec[2] + 400), rng.integers(sec[2], sec[2] + sec[3], 300)))
-    rejected = 0
-    for pos in positions:
+    rejected = set()
+    for pos in range(sec[2], sec[2] + sec[3]):
         bad = bytearray(data)
         bad[pos] ^= 1 << int(rng.integers(0, 8))
         try:
             a = Asset(bytes(bad), skip_checksum=True)
         except RuntimeResultError:
-            rejected += 1
+            rejected.add(pos)
             continue
         for m in motions:
-            pose = a.sample(m.name, 0.37)
-            assert np.all(np.isfinite(pose))
-    assert rejected > 100
-    # Truncations inside the section are rejected.
-    for cut in (16, 40, sec[3] // 2, sec[3] - 4):
-        bad = bytes(data[:sec[2] + cut]) + bytes(data[sec[2] + sec[3]:])
-        with pytest.raises((RuntimeResultError, ValueError)):
-            Asset(bad, skip_checksum=True)
+            for t in (0.0, 0.37, m.frame_count / m.frame_rate):
+                assert np.all(np.isfinite(a.sample(m.name, t))), pos
+    assert structural <= rejected, sorted(structural - rejected)[:10]
+    assert len(rejected) > 0.25 * sec[3], (len(rejected), sec[3])
+
+
+def test_truncated_parts_are_rejected(small):
+    """A section prefix or payload cut short (in an otherwise well-formed container) is
+    refused by the runtime when the asset is built or opened; so is a truncated buffer."""
+    motions, result = small
+    section, payloads = _rmap(result.asset)
+    shared_end = struct.unpack_from("<I", section, 24)[0]
+    prefix = section[:shared_end]
+    payload = [p for _, p in payloads]
+
+    def build(prefix: bytes, payload: list[bytes]) -> bytes:
+        b = AssetBuilder()
+        for m, p in zip(motions, payload):
+            s = b.add_skeleton(m.skeleton, CM)
+            b.add_clip(ClipEntry(m.name, s, "rma-pca", p, m.frame_count, m.frame_rate))
+        b.codec_prefix["rma-pca"] = prefix
+        return b.build()
+
+    Asset(build(prefix, payload))  # the parts as written: valid
+    for cut in range(4, len(prefix), max(4, len(prefix) // 97 // 4 * 4)):
+        with pytest.raises(RuntimeResultError):
+            Asset(build(prefix[:cut], payload))
+    for c in range(len(payload)):
+        for cut in range(4, len(payload[c]), max(4, len(payload[c]) // 61 // 4 * 4)):
+            with pytest.raises(RuntimeResultError):
+                Asset(build(prefix, [p[:cut] if i == c else p for i, p in enumerate(payload)]))
+    for cut in (16, 100, len(result.asset) // 2, len(result.asset) - 16):
+        with pytest.raises(RuntimeResultError):
+            Asset(result.asset[:cut])
 
 
 def test_settings_reject_bad_values():
     for bad in ({"variance": 0.0}, {"variance": 1.5}, {"groups": 0}, {"coef_cm": -1}, {"key_grid": 9},
-                {"repeats": "yes"}, {"blend_seconds": 2.0}):
+                {"repeats": "yes"}, {"blend_seconds": 2.0}, {"group_shift": 0}, {"group_shift": 7}):
         with pytest.raises(ValueError):
             RmaPcaSettings(**bad)
 

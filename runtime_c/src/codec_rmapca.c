@@ -1,11 +1,13 @@
-/* Codec `rma-pca`: seed 003's subspace representation (docs/FORMAT.md, RMAP).
+/* Codec `rma-pca`: seed 003's subspace representation, sampled in place (docs/FORMAT.md, RMAP
+ * version 2).
  *
- * Per behaviour group a PCA basis of virtual markers (16-bit mean, 12-bit axes); per clip the
- * root curves and, for each piece of the clip (a run of frames in one group), the coefficient
- * curves. Every curve set is an `rma` clip payload whose node translations carry the curves, in
- * an RMAL section embedded in this one: this file reuses the rma codec to decode and sample
- * them and adds what the subspace needs: markers = mean + axes x coefficients, each joint's
- * world frame from its markers by Gram-Schmidt, local rotations, the root re-applied. */
+ * Per behaviour group a PCA basis of virtual markers (16-bit mean, 12-bit axes) that the section
+ * shares; per clip the root curves and, for each piece of the clip (a run of frames in one
+ * group), the coefficient curves. Every curve set is an `rma` (RMAL v2) payload whose node
+ * translations carry the curves, three coefficients a node: this file samples them with the rma
+ * codec into scratch areas of their own and adds what the subspace needs: markers = mean + axes
+ * x coefficients, dequantized from the codes of the groups the sample reads, each joint's world
+ * frame from its markers by Gram-Schmidt, local rotations, the root re-applied. */
 #include <string.h>
 
 #include "internal.h"
@@ -13,193 +15,265 @@
 #define SECTION_HEADER 32u
 #define JOINT_RECORD 24u
 #define GROUP_HEADER 16u
-#define CLIP_HEADER 24u
-#define PIECE_RECORD 8u
+#define CLIP_HEADER 16u
+#define PIECE_RECORD 16u
 #define NO_INDEX 0xFFFFu
+#define NO_PRIMARY 0xFFFFFFFFu
+#define SHARED_BIT 0x80000000u /* a piece's `curves` names a shared set, not an own one */
 #define MAX_MARKERS 4096u
 #define MAX_GROUPS 65535u
-#define RESIDENT_HEADER 16u
+#define MAX_SHARED 0x10000000u
 #define FULL_ROOT 1u
 #define MAX_BLEND 64u
-
-static size_t align4z(size_t x) {
-    return (x + 3u) & ~(size_t)3u;
-}
-
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
-}
+#define PER_NODE 3u          /* coefficients per curve-set node: its translation's x, y, z */
+#define MAX_AXIS_VALUE 2.0f  /* axes are unit vectors: their decoded values stay within +-2 */
+#define RMAL_MODES 32u       /* where an RMAL v2 payload's node modes start */
+#define MEAN_CODES 65535.0f
+#define AXIS_CODES 4095.0f
 
 /* ---------------------------------------------------------------- section prefix */
 typedef struct prefix {
-    uint32_t clips, groups, markers, joints, basis_bytes, curves_bytes, blend, size;
-    const uint8_t *joint_table, *group_table, *curves;
+    const uint8_t* s;
+    uint32_t size, clips, groups, markers, joints, blend, shared, shared_end;
+    const uint8_t *joint_table, *group_offsets, *shared_offsets;
+    uint32_t tables_end; /* where the first group record lies */
 } prefix;
 
-/* Bytes of a group record: header, k (min, step) pairs, 16-bit mean, 12-bit axes. */
-static uint64_t group_record_size(uint32_t k, uint32_t dims) {
-    uint64_t codes = (uint64_t)dims * k;
-    return align4z((size_t)(GROUP_HEADER + 8u * (uint64_t)k + 2u * (uint64_t)dims + 3u * ((codes + 1u) / 2u)));
+/* Bytes of a group record: header, k (min, step) pairs, 16-bit mean, 12-bit axes, to 4. */
+static uint64_t group_record_size(uint64_t k, uint64_t dims) {
+    return (GROUP_HEADER + 8u * k + 2u * dims + 3u * ((dims * k + 1u) / 2u) + 3u) & ~(uint64_t)3u;
 }
 
-static int f32_ok(const uint8_t* p) {
-    return mcd_in_bounds(mcd_rd_f32(p));
-}
-
+/* The header and where the tables lie: O(1), what every entry point needs. */
 static mcd_result parse_prefix(const uint8_t* s, uint32_t size, prefix* P) {
-    uint32_t i, g;
-    uint64_t end, pos;
+    uint64_t end;
     if (size < SECTION_HEADER) return MCD_ERROR_MALFORMED;
+    P->s = s;
+    P->size = size;
     P->clips = mcd_rd_u32(s);
     P->groups = mcd_rd_u32(s + 4);
     P->markers = mcd_rd_u32(s + 8);
     P->joints = mcd_rd_u32(s + 12);
-    P->basis_bytes = mcd_rd_u32(s + 16);
-    P->curves_bytes = mcd_rd_u32(s + 20);
-    P->blend = mcd_rd_u32(s + 24);
-    if (P->blend > MAX_BLEND || mcd_rd_u32(s + 28)) return MCD_ERROR_MALFORMED;
-    if (P->clips == 0 || P->groups == 0 || P->groups > MAX_GROUPS) return MCD_ERROR_MALFORMED;
+    P->blend = mcd_rd_u32(s + 16);
+    P->shared = mcd_rd_u32(s + 20);
+    P->shared_end = mcd_rd_u32(s + 24);
+    if (mcd_rd_u32(s + 28) || P->blend > MAX_BLEND || P->clips == 0) return MCD_ERROR_MALFORMED;
+    if (P->groups == 0 || P->groups > MAX_GROUPS || P->shared > MAX_SHARED) return MCD_ERROR_MALFORMED;
     if (P->markers == 0 || P->markers > MAX_MARKERS || P->joints == 0 || P->joints > MCD_MAX_NODES)
         return MCD_ERROR_MALFORMED;
-    if ((P->basis_bytes & 3u) || (P->curves_bytes & 3u)) return MCD_ERROR_MALFORMED;
-    end = SECTION_HEADER + (uint64_t)JOINT_RECORD * P->joints + P->basis_bytes + P->curves_bytes;
-    if (end > size) return MCD_ERROR_MALFORMED;
-    P->size = (uint32_t)end;
+    end = SECTION_HEADER + (uint64_t)JOINT_RECORD * P->joints + 4u * ((uint64_t)P->groups + P->shared);
+    if (end > P->shared_end || P->shared_end > size || (P->shared_end & 3u)) return MCD_ERROR_MALFORMED;
     P->joint_table = s + SECTION_HEADER;
-    P->group_table = P->joint_table + (size_t)JOINT_RECORD * P->joints;
-    P->curves = P->group_table + P->basis_bytes;
-    for (i = 0; i < P->joints; ++i) {
-        const uint8_t* j = P->joint_table + (size_t)JOINT_RECORD * i;
-        uint32_t child = mcd_rd_u16(j + 2), origin = mcd_rd_u16(j + 8);
-        float bx, by, bz;
-        if (mcd_rd_u16(j + 4) >= P->markers || mcd_rd_u16(j + 6) >= P->markers) return MCD_ERROR_MALFORMED;
-        if ((origin != NO_INDEX && origin >= P->markers) || mcd_rd_u16(j + 10)) return MCD_ERROR_MALFORMED;
-        if (!f32_ok(j + 12) || !f32_ok(j + 16) || !f32_ok(j + 20)) return MCD_ERROR_MALFORMED;
-        bx = mcd_rd_f32(j + 12);
-        by = mcd_rd_f32(j + 16);
-        bz = mcd_rd_f32(j + 20);
-        /* A marker-b joint carries its rest direction: a unit vector. */
-        if (child == NO_INDEX && !(bx * bx + by * by + bz * bz > 0.25f && bx * bx + by * by + bz * bz < 4.0f))
-            return MCD_ERROR_MALFORMED;
-    }
-    for (g = 0, pos = 0; g < P->groups; ++g) {
-        const uint8_t* r = P->group_table + pos;
-        uint32_t k, a;
-        uint64_t rs;
-        if (pos + GROUP_HEADER > P->basis_bytes) return MCD_ERROR_MALFORMED;
-        k = mcd_rd_u32(r);
-        if (k > 3u * P->markers || mcd_rd_u32(r + 4)) return MCD_ERROR_MALFORMED;
-        rs = group_record_size(k, 3u * P->markers);
-        if (pos + rs > P->basis_bytes) return MCD_ERROR_MALFORMED;
-        for (a = 0; a <= k; ++a) {
-            const uint8_t* q = a ? r + GROUP_HEADER + 8u * (a - 1u) : r + 8;
-            if (!f32_ok(q) || !f32_ok(q + 4) || mcd_rd_f32(q + 4) < 0.0f) return MCD_ERROR_MALFORMED;
-        }
-        pos += rs;
-    }
-    return pos == P->basis_bytes ? MCD_OK : MCD_ERROR_MALFORMED;
+    P->group_offsets = P->joint_table + (size_t)JOINT_RECORD * P->joints;
+    P->shared_offsets = P->group_offsets + 4u * (size_t)P->groups;
+    P->tables_end = (uint32_t)end;
+    return MCD_OK;
 }
 
-/* Offset of group g's record (the prefix is valid). */
 static const uint8_t* group_at(const prefix* P, uint32_t g) {
-    const uint8_t* r = P->group_table;
-    uint32_t i;
-    for (i = 0; i < g; ++i) r += group_record_size(mcd_rd_u32(r), 3u * P->markers);
-    return r;
-}
-
-/* ---------------------------------------------------------------- curve sets (rma payloads) */
-/* A view of the curve set at byte `offset` of the embedded RMAL section, as the rma codec's
- * clip: `nodes` curves of `frames` frames. */
-static void curve_view(const prefix* P, const uint8_t* rma_resident, uint32_t offset, uint32_t frames,
-                       uint32_t nodes, mcd_clip_view* v) {
-    memset(v, 0, sizeof *v);
-    v->section = P->curves;
-    v->section_size = P->curves_bytes;
-    v->payload = P->curves + offset;
-    v->payload_size = offset + 4u <= P->curves_bytes ? mcd_rd_u32(P->curves + offset) : 0u;
-    v->frame_count = frames;
-    v->node_count = nodes;
-    v->frame_rate = 1.0f;
-    v->skeleton = NULL; /* curve translations only: no rest offsets */
-    v->resident = rma_resident;
-}
-
-/* ---------------------------------------------------------------- clip payload */
-typedef struct clip_layout {
-    uint32_t frames, pieces, flags, curves_offset, repeats;
-    const uint8_t *piece_table, *repeat_table;
-} clip_layout;
-
-static uint32_t piece_start(const clip_layout* C, uint32_t i) {
-    return mcd_rd_u32(C->piece_table + (size_t)PIECE_RECORD * i);
-}
-
-static uint32_t piece_group(const clip_layout* C, uint32_t i) {
-    return mcd_rd_u32(C->piece_table + (size_t)PIECE_RECORD * i + 4u);
-}
-
-/* Piece i's curves span its frames plus `blend` frames into each neighbour, where the two
- * pieces are cross-faded (the seed's clip-boundary smoothing); parse_clip keeps every span
- * inside the clip. */
-static uint32_t piece_lo(const prefix* P, const clip_layout* C, uint32_t i) {
-    return i ? piece_start(C, i) - P->blend : 0u;
-}
-
-static uint32_t piece_frames(const prefix* P, const clip_layout* C, uint32_t i) {
-    uint32_t hi = i + 1u < C->pieces ? piece_start(C, i + 1u) + P->blend : C->frames - 1u;
-    return hi - piece_lo(P, C, i) + 1u;
+    return P->s + mcd_rd_u32(P->group_offsets + 4u * (size_t)g);
 }
 
 static uint32_t group_k(const prefix* P, uint32_t g) {
     return mcd_rd_u32(group_at(P, g));
 }
 
-/* Offset of the primary's curve set when piece i is a repeated piece (seed 003 eq. 6), else 0:
- * a binary search of the repeat table, which lists repeated pieces in increasing order. */
-static uint32_t piece_primary(const clip_layout* C, uint32_t i) {
-    uint32_t lo = 0, hi = C->repeats;
-    while (lo < hi) {
-        uint32_t mid = (lo + hi) / 2u, p = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * mid);
-        if (p == i) return mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * mid + 4u);
-        if (p < i) lo = mid + 1u;
-        else hi = mid;
+static uint32_t shared_offset(const prefix* P, uint32_t i) {
+    return mcd_rd_u32(P->shared_offsets + 4u * (size_t)i);
+}
+
+/* Curve-set nodes that carry k coefficients (one node, resting, when k = 0). */
+static uint32_t coef_nodes(uint32_t k) {
+    return k ? (k + PER_NODE - 1u) / PER_NODE : 1u;
+}
+
+/* ---------------------------------------------------------------- curve sets (rma payloads) */
+static uint32_t set_size(const uint8_t* set) {
+    return mcd_rd_u32(set);
+}
+static uint32_t set_frames(const uint8_t* set) {
+    return mcd_rd_u32(set + 4);
+}
+static uint32_t set_nodes(const uint8_t* set) {
+    return mcd_rd_u32(set + 8);
+}
+
+/* The curve set at `set` as the rma codec's clip (it has no skeleton: rest is identity). */
+static void set_view(const prefix* P, const uint8_t* set, mcd_clip_view* v) {
+    memset(v, 0, sizeof *v);
+    v->section = P->s;
+    v->section_size = P->size;
+    v->payload = set;
+    v->payload_size = set_size(set);
+    v->frame_count = set_frames(set);
+    v->node_count = set_nodes(set);
+    v->frame_rate = 1.0f;
+    v->skeleton = NULL;
+}
+
+/* A complete curve set within [set, limit): an RMAL v2 payload whose nodes move only their
+ * translations (rotation and scale at rest), of `frames` frames and `nodes` nodes (0: any). */
+static mcd_result check_set(const prefix* P, const uint8_t* set, const uint8_t* limit, uint32_t frames,
+                            uint32_t nodes) {
+    mcd_clip_view v;
+    uint32_t i, n;
+    if (limit - set < (ptrdiff_t)RMAL_MODES) return MCD_ERROR_MALFORMED;
+    if (set_size(set) < RMAL_MODES || set_size(set) > (size_t)(limit - set)) return MCD_ERROR_MALFORMED;
+    if ((frames && set_frames(set) != frames) || (nodes && set_nodes(set) != nodes)) return MCD_ERROR_MALFORMED;
+    set_view(P, set, &v);
+    if (mcd_codec_rma_ops.validate(&v) != MCD_OK) return MCD_ERROR_MALFORMED;
+    for (i = 0, n = set_nodes(set); i < n; ++i)
+        if (set[RMAL_MODES + i] & ~0x0Cu) return MCD_ERROR_MALFORMED; /* rma checked the bytes exist */
+    return MCD_OK;
+}
+
+/* ---------------------------------------------------------------- section validation */
+static int f32_ok(const uint8_t* p) {
+    return mcd_in_bounds(mcd_rd_f32(p));
+}
+
+/* Group record g at `r`, `avail` bytes: every decoded mean value within +-1e7, every axis
+ * value within +-2, padding zero. */
+static mcd_result check_group(const uint8_t* r, uint64_t avail, uint32_t dims, uint64_t* size) {
+    uint32_t k, a;
+    uint64_t codes, end, i;
+    const uint8_t* packed;
+    if (avail < GROUP_HEADER) return MCD_ERROR_MALFORMED;
+    k = mcd_rd_u32(r);
+    if (k > dims || mcd_rd_u32(r + 4)) return MCD_ERROR_MALFORMED;
+    *size = group_record_size(k, dims);
+    if (*size > avail) return MCD_ERROR_MALFORMED;
+    for (a = 0; a <= k; ++a) {
+        const uint8_t* q = a ? r + GROUP_HEADER + 8u * (a - 1u) : r + 8;
+        float lo = mcd_rd_f32(q), step = mcd_rd_f32(q + 4);
+        float bound = a ? MAX_AXIS_VALUE : MCD_MAX_ABS_VALUE, top;
+        if (!f32_ok(q) || !f32_ok(q + 4) || step < 0.0f) return MCD_ERROR_MALFORMED;
+        top = lo + (a ? AXIS_CODES : MEAN_CODES) * step;
+        if (lo < -bound || !mcd_finite(top) || top > bound) return MCD_ERROR_MALFORMED;
     }
-    return 0u;
+    codes = (uint64_t)dims * k;
+    packed = r + GROUP_HEADER + 8u * (size_t)k + 2u * (size_t)dims;
+    /* An odd code count leaves the last byte pair's high code, which is zero; then zero bytes. */
+    if ((codes & 1u) && (packed[3u * (codes / 2u) + 1u] >> 4 || packed[3u * (codes / 2u) + 2u]))
+        return MCD_ERROR_MALFORMED;
+    end = GROUP_HEADER + 8u * (uint64_t)k + 2u * dims + 3u * ((codes + 1u) / 2u);
+    for (i = end; i < *size; ++i)
+        if (r[i]) return MCD_ERROR_MALFORMED;
+    return MCD_OK;
 }
 
-/* Curves of piece i: one per component (one zero curve for a group without components), after
- * the reference curve of a repeated piece. */
+static mcd_result rmap_validate_section(const uint8_t* s, uint32_t size) {
+    prefix P;
+    uint32_t i, g, dims;
+    uint64_t pos;
+    if (parse_prefix(s, size, &P) != MCD_OK) return MCD_ERROR_MALFORMED;
+    dims = 3u * P.markers;
+    for (i = 0; i < P.joints; ++i) {
+        const uint8_t* j = P.joint_table + (size_t)JOINT_RECORD * i;
+        uint32_t child = mcd_rd_u16(j + 2), origin = mcd_rd_u16(j + 8);
+        float bx, by, bz, b2;
+        if (mcd_rd_u16(j + 4) >= P.markers || mcd_rd_u16(j + 6) >= P.markers) return MCD_ERROR_MALFORMED;
+        if ((origin != NO_INDEX && origin >= P.markers) || mcd_rd_u16(j + 10)) return MCD_ERROR_MALFORMED;
+        if (!f32_ok(j + 12) || !f32_ok(j + 16) || !f32_ok(j + 20)) return MCD_ERROR_MALFORMED;
+        bx = mcd_rd_f32(j + 12);
+        by = mcd_rd_f32(j + 16);
+        bz = mcd_rd_f32(j + 20);
+        b2 = bx * bx + by * by + bz * bz;
+        /* A marker-b joint carries its rest direction, a unit vector; the others zeros. */
+        if (child == NO_INDEX ? !(b2 > 0.25f && b2 < 4.0f) : b2 != 0.0f) return MCD_ERROR_MALFORMED;
+    }
+    /* Group records back to back after the tables, each where the offset table says. */
+    for (g = 0, pos = P.tables_end; g < P.groups; ++g) {
+        uint64_t rs;
+        if (mcd_rd_u32(P.group_offsets + 4u * (size_t)g) != pos) return MCD_ERROR_MALFORMED;
+        if (check_group(s + pos, P.shared_end - pos, dims, &rs) != MCD_OK) return MCD_ERROR_MALFORMED;
+        pos += rs;
+    }
+    /* Shared curve sets back to back after the groups, ending at shared_end. */
+    for (i = 0; i < P.shared; ++i) {
+        if (shared_offset(&P, i) != pos) return MCD_ERROR_MALFORMED;
+        if (check_set(&P, s + pos, s + P.shared_end, 0, 0) != MCD_OK) return MCD_ERROR_MALFORMED;
+        pos += set_size(s + pos);
+    }
+    if (pos != P.shared_end) return MCD_ERROR_MALFORMED;
+    /* Then the clip payloads, back to back to the section's end. */
+    for (i = 0; i < P.clips; ++i) {
+        uint32_t n;
+        if (size - pos < CLIP_HEADER) return MCD_ERROR_MALFORMED;
+        n = mcd_rd_u32(s + pos);
+        if (n < CLIP_HEADER || (n & 3u) || n > size - pos) return MCD_ERROR_MALFORMED;
+        pos += n;
+    }
+    return pos == size ? MCD_OK : MCD_ERROR_MALFORMED;
+}
+
+/* ---------------------------------------------------------------- clip payload */
+typedef struct clip_layout {
+    const uint8_t* p;
+    uint32_t frames, pieces, flags;
+} clip_layout;
+
+static const uint8_t* piece_record(const clip_layout* C, uint32_t i) {
+    return C->p + CLIP_HEADER + (size_t)PIECE_RECORD * i;
+}
+static uint32_t piece_start(const clip_layout* C, uint32_t i) {
+    return mcd_rd_u32(piece_record(C, i));
+}
+static uint32_t piece_group(const clip_layout* C, uint32_t i) {
+    return mcd_rd_u32(piece_record(C, i) + 4u);
+}
+static uint32_t piece_curves(const clip_layout* C, uint32_t i) {
+    return mcd_rd_u32(piece_record(C, i) + 8u);
+}
+static uint32_t piece_primary(const clip_layout* C, uint32_t i) {
+    return mcd_rd_u32(piece_record(C, i) + 12u);
+}
+
+/* Piece i's curves span its frames plus `blend` frames into each neighbour, where the two
+ * pieces are cross-faded (the seed's clip-boundary smoothing); validation keeps every span
+ * inside the clip. */
+static uint32_t piece_lo(const prefix* P, const clip_layout* C, uint32_t i) {
+    return i ? piece_start(C, i) - P->blend : 0u;
+}
+static uint32_t piece_frames(const prefix* P, const clip_layout* C, uint32_t i) {
+    uint32_t hi = i + 1u < C->pieces ? piece_start(C, i + 1u) + P->blend : C->frames - 1u;
+    return hi - piece_lo(P, C, i) + 1u;
+}
+
+/* Curve-set nodes of piece i: the coefficients', after a repeated piece's reference curve. */
 static uint32_t piece_nodes(const prefix* P, const clip_layout* C, uint32_t i) {
-    uint32_t k = group_k(P, piece_group(C, i));
-    return (k ? k : 1u) + (piece_primary(C, i) ? 1u : 0u);
+    return coef_nodes(group_k(P, piece_group(C, i))) + (piece_primary(C, i) != NO_PRIMARY ? 1u : 0u);
 }
 
-/* Frames of the curve set at `offset` as its own header says (the runtime clamps the
- * reference into them); 0 when the header is not readable. */
-static uint32_t set_frames(const prefix* P, uint32_t offset) {
-    return (uint64_t)offset + 8u <= P->curves_bytes ? mcd_rd_u32(P->curves + offset + 4u) : 0u;
+static const uint8_t* piece_set(const prefix* P, const clip_layout* C, uint32_t i) {
+    uint32_t c = piece_curves(C, i);
+    return c & SHARED_BIT ? P->s + shared_offset(P, c & ~SHARED_BIT) : C->p + c;
 }
 
-static mcd_result parse_clip(const mcd_clip_view* v, const prefix* P, clip_layout* C) {
-    const uint8_t* p = v->payload;
+static const uint8_t* root_set(const clip_layout* C) {
+    return C->p + CLIP_HEADER + (size_t)PIECE_RECORD * C->pieces;
+}
+
+static uint32_t root_nodes(const clip_layout* C) {
+    return (C->flags & FULL_ROOT) ? 3u : 2u;
+}
+
+/* The header fields (the payload passed rmap_validate). */
+static void read_clip(const mcd_clip_view* v, clip_layout* C) {
+    C->p = v->payload;
+    C->frames = mcd_rd_u32(v->payload + 4);
+    C->pieces = mcd_rd_u32(v->payload + 8);
+    C->flags = mcd_rd_u32(v->payload + 12);
+}
+
+static mcd_result check_pieces(const mcd_clip_view* v, const prefix* P, const clip_layout* C) {
     uint32_t i;
-    if ((size_t)(v->payload - v->section) < P->size || v->payload_size < CLIP_HEADER) return MCD_ERROR_MALFORMED;
-    C->frames = mcd_rd_u32(p + 4);
-    C->pieces = mcd_rd_u32(p + 8);
-    C->flags = mcd_rd_u32(p + 12);
-    C->curves_offset = mcd_rd_u32(p + 16);
-    C->repeats = mcd_rd_u32(p + 20);
-    C->piece_table = p + CLIP_HEADER;
-    C->repeat_table = C->piece_table;
-    if (mcd_rd_u32(p) != v->payload_size) return MCD_ERROR_MALFORMED;
-    if (C->frames != v->frame_count || C->frames == 0 || C->flags > FULL_ROOT) return MCD_ERROR_MALFORMED;
-    if (C->pieces == 0 || C->pieces > C->frames || C->repeats > C->pieces) return MCD_ERROR_MALFORMED;
-    if ((uint64_t)CLIP_HEADER + (uint64_t)PIECE_RECORD * ((uint64_t)C->pieces + C->repeats) != v->payload_size)
+    uint64_t pos;
+    if (set_size(C->p) != v->payload_size || C->frames != v->frame_count || C->flags > FULL_ROOT)
         return MCD_ERROR_MALFORMED;
-    C->repeat_table = C->piece_table + (size_t)PIECE_RECORD * C->pieces; /* inside: sizes checked */
-    if (C->curves_offset < 16u || (C->curves_offset & 3u) || C->curves_offset >= P->curves_bytes)
-        return MCD_ERROR_MALFORMED;
+    if (C->pieces == 0 || C->pieces > C->frames) return MCD_ERROR_MALFORMED;
+    pos = CLIP_HEADER + (uint64_t)PIECE_RECORD * C->pieces;
+    if (pos > v->payload_size) return MCD_ERROR_MALFORMED;
     /* Pieces start at 0 and are more than two blend windows long, so cross-fades neither
      * overlap nor leave the clip. */
     if (piece_start(C, 0) != 0) return MCD_ERROR_MALFORMED;
@@ -209,55 +283,45 @@ static mcd_result parse_clip(const mcd_clip_view* v, const prefix* P, clip_layou
         if (C->pieces > 1u && ((uint64_t)piece_start(C, i) + 2u * P->blend + 1u > next || next >= C->frames))
             return MCD_ERROR_MALFORMED;
     }
-    /* Repeated pieces: increasing piece indices, primaries' curve sets inside the section, in
-     * groups with components. */
-    for (i = 0; i < C->repeats; ++i) {
-        const uint8_t* r = C->repeat_table + (size_t)PIECE_RECORD * i;
-        uint32_t piece = mcd_rd_u32(r), offset = mcd_rd_u32(r + 4);
-        if (piece >= C->pieces || (i > 0 && piece <= mcd_rd_u32(r - PIECE_RECORD))) return MCD_ERROR_MALFORMED;
-        if (offset < 16u || (offset & 3u) || offset >= P->curves_bytes) return MCD_ERROR_MALFORMED;
-        if (group_k(P, piece_group(C, piece)) == 0) return MCD_ERROR_MALFORMED;
+    /* The root's curve set, then the pieces' own ones in piece order, to the payload's end. */
+    if (check_set(P, C->p + pos, C->p + v->payload_size, C->frames, root_nodes(C)) != MCD_OK)
+        return MCD_ERROR_MALFORMED;
+    pos += set_size(C->p + pos);
+    for (i = 0; i < C->pieces; ++i) {
+        uint32_t c = piece_curves(C, i), primary = piece_primary(C, i), k = group_k(P, piece_group(C, i));
+        uint32_t frames = piece_frames(P, C, i), nodes = piece_nodes(P, C, i);
+        if (c & SHARED_BIT) {
+            /* Checked whole by rmap_validate_section: only its shape is the piece's concern. */
+            const uint8_t* set;
+            if ((c & ~SHARED_BIT) >= P->shared) return MCD_ERROR_MALFORMED;
+            set = P->s + shared_offset(P, c & ~SHARED_BIT);
+            if (set_frames(set) != frames || set_nodes(set) != nodes) return MCD_ERROR_MALFORMED;
+        } else {
+            if (c != pos || check_set(P, C->p + pos, C->p + v->payload_size, frames, nodes) != MCD_OK)
+                return MCD_ERROR_MALFORMED;
+            pos += set_size(C->p + pos);
+        }
+        /* A repeated piece (seed 003 eq. 6) reads a shared set of k coefficients, any length. */
+        if (primary != NO_PRIMARY) {
+            if (k == 0 || primary >= P->shared) return MCD_ERROR_MALFORMED;
+            if (set_nodes(P->s + shared_offset(P, primary)) != coef_nodes(k)) return MCD_ERROR_MALFORMED;
+        }
     }
-    return MCD_OK;
-}
-
-/* The clip's curve sets lie back to back from curves_offset: the root's, then one per piece.
- * Walks to set `index` (0 = root); returns its offset in the RMAL section, or 0 past the end. */
-static uint32_t set_offset(const prefix* P, const clip_layout* C, uint32_t index) {
-    uint64_t off = C->curves_offset;
-    uint32_t i;
-    for (i = 0; i < index; ++i) {
-        uint32_t size;
-        if (off + 4u > P->curves_bytes) return 0;
-        size = mcd_rd_u32(P->curves + off);
-        if (size == 0) return 0;
-        off += size;
-    }
-    return off + 4u <= P->curves_bytes ? (uint32_t)off : 0u;
-}
-
-/* The skeleton node's rest offset. */
-static void rest_offset(const mcd_clip_view* v, uint32_t node, float out[3]) {
-    const uint8_t* rec = v->skeleton + 16 + (size_t)node * MCD_SKEL_NODE_SIZE;
-    out[0] = mcd_rd_f32(rec + 8);
-    out[1] = mcd_rd_f32(rec + 12);
-    out[2] = mcd_rd_f32(rec + 16);
-}
-
-static int32_t parent_of(const mcd_clip_view* v, uint32_t node) {
-    return mcd_rd_i32(v->skeleton + 16 + (size_t)node * MCD_SKEL_NODE_SIZE);
+    return pos == v->payload_size ? MCD_OK : MCD_ERROR_MALFORMED;
 }
 
 static mcd_result rmap_validate(const mcd_clip_view* v) {
     prefix P;
     clip_layout C;
-    mcd_result r;
     uint32_t i;
     if (parse_prefix(v->section, v->section_size, &P) != MCD_OK) return MCD_ERROR_MALFORMED;
-    if (parse_clip(v, &P, &C) != MCD_OK) return MCD_ERROR_MALFORMED;
+    if ((size_t)(v->payload - v->section) < P.shared_end || v->payload_size < CLIP_HEADER) return MCD_ERROR_MALFORMED;
+    read_clip(v, &C);
+    if (check_pieces(v, &P, &C) != MCD_OK) return MCD_ERROR_MALFORMED;
     /* One root (node 0): the root curves move it. */
+    if (mcd_skel_parent(v->skeleton, 0) >= 0) return MCD_ERROR_MALFORMED;
     for (i = 1; i < v->node_count; ++i)
-        if (parent_of(v, i) < 0) return MCD_ERROR_MALFORMED;
+        if (mcd_skel_parent(v->skeleton, i) < 0) return MCD_ERROR_MALFORMED;
     /* The joint table must fit this clip's skeleton. */
     for (i = 0; i < P.joints; ++i) {
         const uint8_t* j = P.joint_table + (size_t)JOINT_RECORD * i;
@@ -265,186 +329,105 @@ static mcd_result rmap_validate(const mcd_clip_view* v) {
         if (node >= v->node_count) return MCD_ERROR_MALFORMED;
         if (child != NO_INDEX) {
             float o[3];
-            if (child >= v->node_count || parent_of(v, child) != (int32_t)node) return MCD_ERROR_MALFORMED;
-            rest_offset(v, child, o);
+            if (child >= v->node_count || mcd_skel_parent(v->skeleton, child) != (int32_t)node) return MCD_ERROR_MALFORMED;
+            mcd_skel_rest_translation(v->skeleton, child, o);
             if (!(o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > 1e-12f)) return MCD_ERROR_MALFORMED;
         }
-    }
-    /* Every curve set this clip reads is a valid rma clip of the expected shape. */
-    for (i = 0; i <= C.pieces; ++i) {
-        mcd_clip_view cv;
-        uint32_t off = set_offset(&P, &C, i);
-        uint32_t frames = i ? piece_frames(&P, &C, i - 1u) : C.frames;
-        uint32_t nodes = i ? piece_nodes(&P, &C, i - 1u) : (C.flags & FULL_ROOT) ? 3u : 2u;
-        const uint8_t* rma_resident = NULL;
-        if (off == 0) return MCD_ERROR_MALFORMED;
-        if (v->resident) rma_resident = v->resident + mcd_rd_u32(v->resident + 4);
-        curve_view(&P, rma_resident, off, frames, nodes, &cv);
-        r = mcd_codec_rma_ops.validate(&cv);
-        if (r != MCD_OK) return MCD_ERROR_MALFORMED;
-    }
-    /* A primary's curve set: k coefficient curves, as many frames as its header says. */
-    for (i = 0; i < C.repeats; ++i) {
-        mcd_clip_view cv;
-        uint32_t piece = mcd_rd_u32(C.repeat_table + (size_t)PIECE_RECORD * i);
-        uint32_t off = mcd_rd_u32(C.repeat_table + (size_t)PIECE_RECORD * i + 4u), frames = set_frames(&P, off);
-        if (frames == 0) return MCD_ERROR_MALFORMED;
-        curve_view(&P, v->resident ? v->resident + mcd_rd_u32(v->resident + 4) : NULL, off, frames,
-                   group_k(&P, piece_group(&C, piece)), &cv);
-        if (mcd_codec_rma_ops.validate(&cv) != MCD_OK) return MCD_ERROR_MALFORMED;
     }
     return MCD_OK;
 }
 
-/* ---------------------------------------------------------------- resident memory */
-/* Resident: u32 total, u32 offset of the embedded RMAL's resident block, u32 groups, u32 0;
- * u32 offset of each group's floats; per group the mean (3M floats) and the k axes (3M floats
- * each), 16-aligned; then the RMAL resident block. */
-static size_t bases_bytes(const prefix* P) {
-    size_t total = align16z(4u * (size_t)P->groups);
-    uint32_t g;
-    const uint8_t* r = P->group_table;
-    for (g = 0; g < P->groups; ++g) {
-        uint32_t k = mcd_rd_u32(r);
-        total += align16z(4u * 3u * (size_t)P->markers * (k + 1u));
-        r += group_record_size(k, 3u * P->markers);
-    }
-    return total;
-}
-
-static size_t rmap_resident_size(const uint8_t* section, uint32_t size) {
-    prefix P;
-    if (parse_prefix(section, size, &P) != MCD_OK) return RESIDENT_HEADER;
-    return RESIDENT_HEADER + bases_bytes(&P) + mcd_codec_rma_ops.resident_size(P.curves, P.curves_bytes);
-}
-
-static uint32_t code12(const uint8_t* packed, size_t i) {
-    const uint8_t* b = packed + 3u * (i / 2u);
-    return (i & 1u) ? (uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4) : (uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8);
-}
-
-static mcd_result rmap_open_section(const uint8_t* section, uint32_t size, uint8_t* resident) {
-    prefix P;
-    uint32_t g, dims, *offsets;
-    size_t pos;
-    const uint8_t* r;
-    if (parse_prefix(section, size, &P) != MCD_OK) return MCD_ERROR_MALFORMED;
-    dims = 3u * P.markers;
-    offsets = (uint32_t*)(resident + RESIDENT_HEADER);
-    pos = RESIDENT_HEADER + align16z(4u * (size_t)P.groups);
-    for (g = 0, r = P.group_table; g < P.groups; ++g) {
-        uint32_t k = mcd_rd_u32(r), a, d;
-        float* f = (float*)(resident + pos);
-        const uint8_t* mean_codes = r + GROUP_HEADER + 8u * k;
-        const uint8_t* axis_codes = mean_codes + 2u * dims;
-        offsets[g] = (uint32_t)pos;
-        for (a = 0; a <= k; ++a) {
-            const uint8_t* q = a ? r + GROUP_HEADER + 8u * (a - 1u) : r + 8;
-            float lo = mcd_rd_f32(q), step = mcd_rd_f32(q + 4);
-            for (d = 0; d < dims; ++d) {
-                uint32_t code = a ? code12(axis_codes, (size_t)(a - 1u) * dims + d) : mcd_rd_u16(mean_codes + 2u * d);
-                float x = lo + (float)code * step;
-                if (!mcd_in_bounds(x)) return MCD_ERROR_MALFORMED;
-                f[(size_t)a * dims + d] = x;
-            }
-        }
-        pos += align16z(4u * (size_t)dims * (k + 1u));
-        r += group_record_size(k, dims);
-    }
-    ((uint32_t*)resident)[0] = (uint32_t)(pos + mcd_codec_rma_ops.resident_size(P.curves, P.curves_bytes));
-    ((uint32_t*)resident)[1] = (uint32_t)pos;
-    ((uint32_t*)resident)[2] = P.groups;
-    return mcd_codec_rma_ops.open_section(P.curves, P.curves_bytes, resident + pos) == MCD_OK ? MCD_OK
-                                                                                                : MCD_ERROR_MALFORMED;
-}
-
 /* ---------------------------------------------------------------- scratch */
-/* A piece's curve set loaded in one of two rma scratch areas (two: a cross-fade reads both). */
+/* A piece's curve set loaded in one of two slots (two: a cross-fade reads both pieces). */
 typedef struct piece_slot {
-    int32_t piece; /* -1 none */
-    uint32_t offset, nodes, frames, lo;
-    uint32_t primary, primary_frames; /* a repeated piece's primary curve set (0: none loaded) */
+    int32_t piece;                 /* -1: none */
+    const uint8_t* primary;        /* the primary's curve set sampled in this slot's area, or NULL */
 } piece_slot;
 
 typedef struct rmap_state {
     piece_slot slot[2];
-    uint32_t max_nodes;   /* transforms in `curves` */
-    size_t root_scratch, piece_scratch, primary_scratch; /* bytes of the rma scratch areas (each) */
+    uint32_t max_nodes, max_k;     /* transforms in `curves`, floats in `coef` */
+    uint32_t root_scratch, piece_scratch, primary_scratch; /* bytes of each rma area */
 } rmap_state;
 
 typedef struct rmap_views {
     rmap_state* st;
-    float* rest;          /* [joints][9] rest frames, columns */
-    int32_t* slot;        /* [nodes] joint index of a node, -1 none */
-    float* world;         /* [nodes][4] aligned-frame world rotations */
-    float* markers;       /* [3M] */
-    mcd_transform* curves;/* [max_nodes] */
-    float* diff;          /* [max_nodes] a repeated piece's coefficient differences */
+    float* rest;           /* [joints][9] rest frames, by columns */
+    int32_t* joint;        /* [nodes] joint record of a node, -1 none */
+    float* world;          /* [nodes][4] world rotations in the aligned frame */
+    float* markers;        /* [3M] */
+    mcd_transform* curves; /* [max_nodes] what a curve set gives */
+    float* coef;           /* [max_k] a piece's coefficients */
     uint8_t *root_rma, *piece_rma[2], *primary_rma[2];
 } rmap_views;
 
-static size_t rmap_scratch_layout(const mcd_clip_view* v, const prefix* P, const clip_layout* C,
-                                  size_t* root_rma, size_t* piece_rma, size_t* primary_rma, uint32_t* max_nodes) {
+static size_t rma_need(const prefix* P, const uint8_t* set) {
+    mcd_clip_view v;
+    set_view(P, set, &v);
+    return mcd_codec_rma_ops.scratch_size(&v);
+}
+
+/* What a clip needs, from its curve sets' headers. */
+static void clip_needs(const prefix* P, const clip_layout* C, rmap_state* st) {
     uint32_t i;
-    size_t fixed;
-    *root_rma = *piece_rma = *primary_rma = 0;
-    for (i = 0; i < C->repeats; ++i) {
-        mcd_clip_view cv;
-        uint32_t off = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * i + 4u);
-        uint32_t piece = mcd_rd_u32(C->repeat_table + (size_t)PIECE_RECORD * i);
-        size_t sz;
-        curve_view(P, NULL, off, set_frames(P, off), group_k(P, piece_group(C, piece)), &cv);
-        sz = mcd_codec_rma_ops.scratch_size(&cv);
-        if (sz > *primary_rma) *primary_rma = sz;
+    size_t piece = 0, primary = 0;
+    st->max_nodes = 3u;
+    st->max_k = 1u;
+    st->root_scratch = (uint32_t)rma_need(P, root_set(C));
+    for (i = 0; i < C->pieces; ++i) {
+        const uint8_t* set = piece_set(P, C, i);
+        uint32_t k = group_k(P, piece_group(C, i)), nodes = set_nodes(set);
+        size_t s = rma_need(P, set);
+        if (s > piece) piece = s;
+        if (nodes > st->max_nodes) st->max_nodes = nodes;
+        if (k > st->max_k) st->max_k = k;
+        if (piece_primary(C, i) != NO_PRIMARY) {
+            s = rma_need(P, P->s + shared_offset(P, piece_primary(C, i)));
+            if (s > primary) primary = s;
+        }
     }
-    *max_nodes = 3u;
-    for (i = 0; i <= C->pieces; ++i) {
-        mcd_clip_view cv;
-        uint32_t nodes = i ? piece_nodes(P, C, i - 1u) : (C->flags & FULL_ROOT) ? 3u : 2u;
-        size_t s;
-        curve_view(P, NULL, set_offset(P, C, i), i ? piece_frames(P, C, i - 1u) : C->frames, nodes, &cv);
-        s = mcd_codec_rma_ops.scratch_size(&cv);
-        if (i == 0) *root_rma = s;
-        else if (s > *piece_rma) *piece_rma = s;
-        if (nodes > *max_nodes) *max_nodes = nodes;
+    st->piece_scratch = (uint32_t)piece;
+    st->primary_scratch = (uint32_t)primary;
+}
+
+/* The scratch's parts after the state, in order; returns the total. */
+static size_t layout(const prefix* P, const mcd_clip_view* v, const rmap_state* st, uint8_t* base, rmap_views* s) {
+    size_t at = mcd_align16(sizeof(rmap_state)), sizes[6];
+    uint32_t i;
+    sizes[0] = mcd_align16(4u * 9u * (size_t)P->joints);
+    sizes[1] = mcd_align16(4u * (size_t)v->node_count);
+    sizes[2] = mcd_align16(16u * (size_t)v->node_count);
+    sizes[3] = mcd_align16(4u * 3u * (size_t)P->markers);
+    sizes[4] = mcd_align16(sizeof(mcd_transform) * st->max_nodes);
+    sizes[5] = mcd_align16(4u * (size_t)st->max_k);
+    if (s) {
+        s->st = (rmap_state*)base;
+        s->rest = (float*)(base + at);
+        s->joint = (int32_t*)(base + at + sizes[0]);
+        s->world = (float*)(base + at + sizes[0] + sizes[1]);
+        s->markers = (float*)(base + at + sizes[0] + sizes[1] + sizes[2]);
+        s->curves = (mcd_transform*)(base + at + sizes[0] + sizes[1] + sizes[2] + sizes[3]);
+        s->coef = (float*)(base + at + sizes[0] + sizes[1] + sizes[2] + sizes[3] + sizes[4]);
     }
-    fixed = align16z(sizeof(rmap_state)) + align16z(4u * 9u * (size_t)P->joints) + align16z(4u * (size_t)v->node_count) +
-            align16z(16u * (size_t)v->node_count) + align16z(4u * 3u * (size_t)P->markers) +
-            align16z(sizeof(mcd_transform) * *max_nodes) + align16z(4u * (size_t)*max_nodes);
-    return fixed + *root_rma + 2u * *piece_rma + 2u * *primary_rma;
+    for (i = 0; i < 6; ++i) at += sizes[i];
+    if (s) {
+        s->root_rma = base + at;
+        s->piece_rma[0] = s->root_rma + st->root_scratch;
+        s->piece_rma[1] = s->piece_rma[0] + st->piece_scratch;
+        s->primary_rma[0] = s->piece_rma[1] + st->piece_scratch;
+        s->primary_rma[1] = s->primary_rma[0] + st->primary_scratch;
+    }
+    return at + st->root_scratch + 2u * (size_t)st->piece_scratch + 2u * (size_t)st->primary_scratch;
 }
 
 static size_t rmap_scratch_size(const mcd_clip_view* v) {
     prefix P;
     clip_layout C;
-    size_t a, b, c;
-    uint32_t n;
+    rmap_state st;
     parse_prefix(v->section, v->section_size, &P); /* validated */
-    parse_clip(v, &P, &C);
-    return rmap_scratch_layout(v, &P, &C, &a, &b, &c, &n);
-}
-
-static void views(void* scratch, const prefix* P, const mcd_clip_view* v, rmap_views* s) {
-    uint8_t* q = (uint8_t*)scratch;
-    s->st = (rmap_state*)q;
-    q += align16z(sizeof(rmap_state));
-    s->rest = (float*)q;
-    q += align16z(4u * 9u * (size_t)P->joints);
-    s->slot = (int32_t*)q;
-    q += align16z(4u * (size_t)v->node_count);
-    s->world = (float*)q;
-    q += align16z(16u * (size_t)v->node_count);
-    s->markers = (float*)q;
-    q += align16z(4u * 3u * (size_t)P->markers);
-    s->curves = (mcd_transform*)q;
-    q += align16z(sizeof(mcd_transform) * s->st->max_nodes);
-    s->diff = (float*)q;
-    q += align16z(4u * (size_t)s->st->max_nodes);
-    s->root_rma = q;
-    s->piece_rma[0] = q + s->st->root_scratch;
-    s->piece_rma[1] = s->piece_rma[0] + s->st->piece_scratch;
-    s->primary_rma[0] = s->piece_rma[1] + s->st->piece_scratch;
-    s->primary_rma[1] = s->primary_rma[0] + s->st->primary_scratch;
+    read_clip(v, &C);
+    clip_needs(&P, &C, &st);
+    return layout(&P, v, &st, NULL, NULL);
 }
 
 /* ---------------------------------------------------------------- geometry */
@@ -538,13 +521,6 @@ static mcd_quat quat_from_matrix(const float r[9]) {
     return q;
 }
 
-static mcd_quat qconj(mcd_quat q) {
-    q.x = -q.x;
-    q.y = -q.y;
-    q.z = -q.z;
-    return q;
-}
-
 static mcd_quat quat_at(const float* f) {
     mcd_quat q;
     q.x = f[0];
@@ -555,25 +531,26 @@ static mcd_quat quat_at(const float* f) {
 }
 
 /* ---------------------------------------------------------------- sampling */
+/* Per clip: each joint's rest frame and each node's joint record. */
 static void prepare(const mcd_clip_view* v, const prefix* P, const rmap_views* s) {
     uint32_t i;
-    for (i = 0; i < v->node_count; ++i) s->slot[i] = -1;
+    for (i = 0; i < v->node_count; ++i) s->joint[i] = -1;
     for (i = 0; i < P->joints; ++i) {
         const uint8_t* j = P->joint_table + (size_t)JOINT_RECORD * i;
         uint32_t node = mcd_rd_u16(j), child = mcd_rd_u16(j + 2);
         float axis[3];
         if (child != NO_INDEX) {
-            rest_offset(v, child, axis);
+            mcd_skel_rest_translation(v->skeleton, child, axis);
         } else {
             axis[0] = mcd_rd_f32(j + 12);
             axis[1] = mcd_rd_f32(j + 16);
             axis[2] = mcd_rd_f32(j + 20);
         }
         rest_frame(axis, s->rest + 9u * i);
-        s->slot[node] = (int32_t)i;
+        s->joint[node] = (int32_t)i;
     }
     s->st->slot[0].piece = s->st->slot[1].piece = -1;
-    s->st->slot[0].primary = s->st->slot[1].primary = 0;
+    s->st->slot[0].primary = s->st->slot[1].primary = NULL;
 }
 
 /* Piece holding frame position x (the last piece whose start is <= x). */
@@ -587,117 +564,154 @@ static uint32_t find_piece(const clip_layout* C, float x) {
     return lo;
 }
 
-/* markers += weight x (mean + axes x coefficients) of piece p at x; `other` is the piece the
- * same sample also reads, whose slot must not be taken. */
-static void add_piece_markers(const prefix* P, const clip_layout* C, const mcd_clip_view* v, const rmap_views* s,
-                              const uint8_t* rma_resident, uint32_t p, uint32_t other, float x, float weight) {
-    piece_slot* sl;
+static float clampf(float x, float lo, float hi) {
+    return x > lo ? (x < hi ? x : hi) : lo;
+}
+
+/* Coefficient i of a curve set's output, `first` nodes in. */
+static float coef_of(const mcd_transform* curves, uint32_t first, uint32_t i) {
+    return curves[first + i / PER_NODE].translation[i % PER_NODE];
+}
+
+/* out[d] += scale x code d, for the `count` 12-bit codes from code index `first` (two codes in
+ * three bytes, the low one first). */
+static void add_codes12(float* out, const uint8_t* packed, size_t first, uint32_t count, float scale) {
+    const uint8_t* b = packed + 3u * (first / 2u);
+    uint32_t d = 0;
+    if ((first & 1u) && count) {
+        out[0] += scale * (float)((uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4));
+        b += 3;
+        d = 1;
+    }
+    for (; d + 1u < count; d += 2u, b += 3) {
+        out[d] += scale * (float)((uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8));
+        out[d + 1u] += scale * (float)((uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4));
+    }
+    if (d < count) out[d] += scale * (float)((uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8));
+}
+
+/* markers += weight x (mean + axes x coefficients) of group g, dequantizing its codes as it
+ * goes: value = min + code x step, so sum_a c_a axis_a = sum_a c_a min_a + sum_a (c_a step_a) code_a. */
+static void add_group_markers(const prefix* P, uint32_t g, const float* coef, float weight, float* markers) {
+    const uint8_t* r = group_at(P, g);
+    uint32_t k = mcd_rd_u32(r), dims = 3u * P->markers, a, d;
+    const uint8_t* pairs = r + GROUP_HEADER;
+    const uint8_t* mean_codes = pairs + 8u * (size_t)k;
+    const uint8_t* axis_codes = mean_codes + 2u * (size_t)dims;
+    float offset = mcd_rd_f32(r + 8), mean_step = weight * mcd_rd_f32(r + 12);
+    for (a = 0; a < k; ++a) offset += coef[a] * mcd_rd_f32(pairs + 8u * a);
+    offset *= weight;
+    for (d = 0; d < dims; ++d) markers[d] += offset + mean_step * (float)mcd_rd_u16(mean_codes + 2u * d);
+    for (a = 0; a < k; ++a)
+        add_codes12(markers, axis_codes, (size_t)a * dims, dims, weight * coef[a] * mcd_rd_f32(pairs + 8u * a + 4u));
+}
+
+/* markers += weight x the markers of piece p at x; `other` is the piece the same sample also
+ * reads, whose slot must not be taken. */
+static void add_piece_markers(const prefix* P, const clip_layout* C, const rmap_views* s, uint32_t p, uint32_t other,
+                              float x, float weight) {
+    const uint8_t* set = piece_set(P, C, p);
     mcd_clip_view cv;
-    const float* basis;
-    float local, last;
-    uint32_t i, d, k, g = piece_group(C, p), dims = 3u * P->markers, which;
+    uint32_t i, k = group_k(P, piece_group(C, p)), which, primary = piece_primary(C, p);
     int fresh = 0;
     if (s->st->slot[0].piece == (int32_t)p) which = 0;
     else if (s->st->slot[1].piece == (int32_t)p) which = 1;
     else {
         which = s->st->slot[0].piece == (int32_t)other && other != p ? 1u : 0u;
-        sl = &s->st->slot[which];
-        sl->piece = (int32_t)p;
-        sl->offset = set_offset(P, C, p + 1u);
-        sl->nodes = piece_nodes(P, C, p);
-        sl->frames = piece_frames(P, C, p);
-        sl->lo = piece_lo(P, C, p);
+        s->st->slot[which].piece = (int32_t)p;
         fresh = 1;
     }
-    sl = &s->st->slot[which];
-    curve_view(P, rma_resident, sl->offset, sl->frames, sl->nodes, &cv);
-    local = x - (float)sl->lo;
-    last = (float)(sl->frames - 1u);
-    mcd_codec_rma_ops.sample(&cv, local < 0.0f ? 0.0f : local > last ? last : local, 0, s->curves,
-                             s->piece_rma[which], fresh);
-    k = mcd_rd_u32(group_at(P, g));
-    if (sl->nodes == k + 1u && k > 0u) {
-        /* Repeated piece: curve 0 is the frame of the primary's curve set to read, the others
+    set_view(P, set, &cv);
+    mcd_codec_rma_ops.sample(&cv, clampf(x - (float)piece_lo(P, C, p), 0.0f, (float)(cv.frame_count - 1u)), 0,
+                             s->curves, s->piece_rma[which], fresh);
+    if (primary == NO_PRIMARY) {
+        for (i = 0; i < k; ++i) s->coef[i] = coef_of(s->curves, 0, i);
+    } else {
+        /* Repeated piece: node 0 gives the frame of the primary's curve set to read, the others
          * the differences to add to the primary's coefficients there (seed 003 eq. 6). */
-        uint32_t primary = piece_primary(C, p);
-        float r = s->curves[0].translation[0], rl;
-        int pfresh = 0;
-        for (i = 0; i < k; ++i) s->diff[i] = s->curves[i + 1u].translation[0];
-        if (fresh || sl->primary != primary) {
-            sl->primary = primary;
-            sl->primary_frames = set_frames(P, primary);
-            pfresh = 1;
-        }
-        curve_view(P, rma_resident, primary, sl->primary_frames, k, &cv);
-        rl = (float)(sl->primary_frames - 1u);
-        mcd_codec_rma_ops.sample(&cv, r > 0.0f ? (r < rl ? r : rl) : 0.0f, 0, s->curves, s->primary_rma[which],
-                                 pfresh);
-        for (i = 0; i < k; ++i) s->curves[i].translation[0] += s->diff[i];
+        const uint8_t* pset = P->s + shared_offset(P, primary);
+        float r = s->curves[0].translation[0];
+        int pfresh = fresh || s->st->slot[which].primary != pset;
+        for (i = 0; i < k; ++i) s->coef[i] = coef_of(s->curves, 1, i);
+        s->st->slot[which].primary = pset;
+        set_view(P, pset, &cv);
+        mcd_codec_rma_ops.sample(&cv, clampf(r, 0.0f, (float)(cv.frame_count - 1u)), 0, s->curves,
+                                 s->primary_rma[which], pfresh);
+        for (i = 0; i < k; ++i) s->coef[i] += coef_of(s->curves, 0, i);
     }
-    basis = (const float*)(v->resident + ((const uint32_t*)(v->resident + RESIDENT_HEADER))[g]);
-    for (d = 0; d < dims; ++d) s->markers[d] += weight * basis[d];
-    for (i = 0; i < k; ++i) {
-        float c = weight * s->curves[i].translation[0];
-        const float* axis = basis + (size_t)(i + 1u) * dims;
-        for (d = 0; d < dims; ++d) s->markers[d] += c * axis[d];
-    }
+    add_group_markers(P, piece_group(C, p), s->coef, weight, s->markers);
 }
 
-static mcd_result rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                              void* scratch, int fresh) {
+/* The rotation the encoder took out of the root: a heading, or the whole rotation. */
+static mcd_quat removed_rotation(const clip_layout* C, const mcd_transform* root) {
+    mcd_quat q;
+    if (C->flags & FULL_ROOT) {
+        float n;
+        q.x = root[1].translation[0];
+        q.y = root[1].translation[1];
+        q.z = root[1].translation[2];
+        q.w = root[2].translation[0];
+        n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+        if (n > 1e-20f) {
+            q.x /= n;
+            q.y /= n;
+            q.z /= n;
+            q.w /= n;
+        } else {
+            q.x = q.y = q.z = 0.0f;
+            q.w = 1.0f;
+        }
+    } else {
+        float half = 0.5f * root[1].translation[0];
+        q.x = q.z = 0.0f;
+        q.y = sinf(half);
+        q.w = cosf(half);
+    }
+    return q;
+}
+
+/* World rotation (aligned frame) of joint record `slot` from the markers: W Rest^T. */
+static mcd_quat joint_rotation(const prefix* P, const rmap_views* s, uint32_t slot) {
+    const uint8_t* j = P->joint_table + (size_t)JOINT_RECORD * slot;
+    uint32_t origin = mcd_rd_u16(j + 8), c, r;
+    const float* am = s->markers + 3u * mcd_rd_u16(j + 4);
+    const float* sm = s->markers + 3u * mcd_rd_u16(j + 6);
+    const float* rest = s->rest + 9u * slot;
+    float a[3] = {0.0f, 0.0f, 0.0f}, u[3], vv[3], wm[9], rm[9];
+    if (origin != NO_INDEX) memcpy(a, s->markers + 3u * origin, sizeof a);
+    for (c = 0; c < 3; ++c) {
+        u[c] = am[c] - a[c];
+        vv[c] = sm[c] - a[c];
+    }
+    frame_from(u, vv, wm);
+    for (r = 0; r < 3; ++r)
+        for (c = 0; c < 3; ++c)
+            rm[r * 3 + c] = wm[r * 3] * rest[c * 3] + wm[r * 3 + 1] * rest[c * 3 + 1] + wm[r * 3 + 2] * rest[c * 3 + 2];
+    return quat_from_matrix(rm);
+}
+
+static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                        int fresh) {
     prefix P;
     clip_layout C;
     rmap_views s;
     mcd_clip_view cv;
-    const uint8_t* rma_resident;
     uint32_t i;
     mcd_quat removed;
     float root_t[3];
     (void)flags;
-    if (!v->resident) return MCD_ERROR_INVALID_ARGUMENT; /* validated but not opened */
-    parse_prefix(v->section, v->section_size, &P);      /* validated at open: cannot fail */
-    parse_clip(v, &P, &C);
-    rma_resident = v->resident + mcd_rd_u32(v->resident + 4);
-    if (fresh) {
-        rmap_state* st = (rmap_state*)scratch;
-        size_t a, b, c;
-        uint32_t n;
-        rmap_scratch_layout(v, &P, &C, &a, &b, &c, &n);
-        st->root_scratch = a;
-        st->piece_scratch = b;
-        st->primary_scratch = c;
-        st->max_nodes = n;
-    }
-    views(scratch, &P, v, &s);
+    parse_prefix(v->section, v->section_size, &P); /* validated: cannot fail */
+    read_clip(v, &C);
+    if (fresh) clip_needs(&P, &C, (rmap_state*)scratch);
+    layout(&P, v, (rmap_state*)scratch, (uint8_t*)scratch, &s);
     if (fresh) prepare(v, &P, &s);
     /* Root: translation, and the heading (or the whole rotation of a six-DOF clip). */
-    curve_view(&P, rma_resident, C.curves_offset, C.frames, (C.flags & FULL_ROOT) ? 3u : 2u, &cv);
+    set_view(&P, root_set(&C), &cv);
     mcd_codec_rma_ops.sample(&cv, x, 0, s.curves, s.root_rma, fresh);
     memcpy(root_t, s.curves[0].translation, sizeof root_t);
-    if (C.flags & FULL_ROOT) {
-        float n;
-        removed.x = s.curves[1].translation[0];
-        removed.y = s.curves[1].translation[1];
-        removed.z = s.curves[1].translation[2];
-        removed.w = s.curves[2].translation[0];
-        n = sqrtf(removed.x * removed.x + removed.y * removed.y + removed.z * removed.z + removed.w * removed.w);
-        if (n > 1e-20f) {
-            removed.x /= n;
-            removed.y /= n;
-            removed.z /= n;
-            removed.w /= n;
-        } else {
-            removed.x = removed.y = removed.z = 0.0f;
-            removed.w = 1.0f;
-        }
-    } else {
-        float half = 0.5f * s.curves[1].translation[0];
-        removed.x = removed.z = 0.0f;
-        removed.y = sinf(half);
-        removed.w = cosf(half);
-    }
+    removed = removed_rotation(&C, s.curves);
     /* Markers of the piece holding x, cross-faded with its neighbour within `blend` frames of
-     * their border (smoothstep weights). */
+     * their border (smoothstep weights); the earlier piece is always added first. */
     {
         uint32_t p = find_piece(&C, x), a = p, b = p;
         float w = 0.0f, h = (float)P.blend;
@@ -708,57 +722,34 @@ static mcd_result rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, m
             b = p + 1u;
             w = (x - ((float)piece_start(&C, b) - h)) / (2.0f * h);
         }
-        w = w < 0.0f ? 0.0f : w > 1.0f ? 1.0f : w;
+        w = clampf(w, 0.0f, 1.0f);
         w = w * w * (3.0f - 2.0f * w);
         memset(s.markers, 0, 4u * 3u * (size_t)P.markers);
-        add_piece_markers(&P, &C, v, &s, rma_resident, a, b, x, a == b ? 1.0f : 1.0f - w);
-        if (a != b) add_piece_markers(&P, &C, v, &s, rma_resident, b, a, x, w);
+        add_piece_markers(&P, &C, &s, a, b, x, a == b ? 1.0f : 1.0f - w);
+        if (a != b) add_piece_markers(&P, &C, &s, b, a, x, w);
     }
-    /* Joint rotations from markers, parents first (the skeleton orders them so). */
+    /* Joint rotations from markers, parents first (the skeleton orders them so). Nodes without
+     * a joint record keep their rest rotation; every node its rest translation and scale. */
     for (i = 0; i < v->node_count; ++i) {
-        int32_t parent = parent_of(v, i), slot = s.slot[i];
+        int32_t parent = mcd_skel_parent(v->skeleton, i), slot = s.joint[i];
         mcd_quat w, local;
-        rest_offset(v, i, out[i].translation);
+        mcd_skel_rest(v->skeleton, i, &out[i]);
         if (slot >= 0) {
-            const uint8_t* j = P.joint_table + (size_t)JOINT_RECORD * (uint32_t)slot;
-            uint32_t origin = mcd_rd_u16(j + 8), c, r;
-            const float* am = s.markers + 3u * mcd_rd_u16(j + 4);
-            const float* sm = s.markers + 3u * mcd_rd_u16(j + 6);
-            const float* rest = s.rest + 9u * (uint32_t)slot;
-            float a[3] = {0.0f, 0.0f, 0.0f}, u[3], vv[3], wm[9], rm[9];
-            if (origin != NO_INDEX) memcpy(a, s.markers + 3u * origin, sizeof a);
-            for (c = 0; c < 3; ++c) {
-                u[c] = am[c] - a[c];
-                vv[c] = sm[c] - a[c];
-            }
-            frame_from(u, vv, wm);
-            /* R = W Rest^T. */
-            for (r = 0; r < 3; ++r)
-                for (c = 0; c < 3; ++c)
-                    rm[r * 3 + c] = wm[r * 3] * rest[c * 3] + wm[r * 3 + 1] * rest[c * 3 + 1] + wm[r * 3 + 2] * rest[c * 3 + 2];
-            w = quat_from_matrix(rm);
-            local = parent < 0 ? w : mcd_qmul(qconj(quat_at(s.world + 4u * (uint32_t)parent)), w);
+            w = joint_rotation(&P, &s, (uint32_t)slot);
+            local = parent < 0 ? w : mcd_qmul(mcd_qconj(quat_at(s.world + 4u * (uint32_t)parent)), w);
         } else {
-            /* A node without rotation channels turns with its parent. */
-            w.x = w.y = w.z = 0.0f;
-            w.w = 1.0f;
-            if (parent >= 0) w = quat_at(s.world + 4u * (uint32_t)parent);
-            local.x = local.y = local.z = 0.0f;
-            local.w = 1.0f;
+            local = mcd_quat_of(&out[i]);
+            w = parent < 0 ? local : mcd_qmul(quat_at(s.world + 4u * (uint32_t)parent), local);
         }
-        s.world[4u * i] = w.x;
-        s.world[4u * i + 1u] = w.y;
-        s.world[4u * i + 2u] = w.z;
-        s.world[4u * i + 3u] = w.w;
+        mcd_set_rotation(s.world + 4u * i, w);
         if (parent < 0) {
             local = mcd_qmul(removed, local);
             memcpy(out[i].translation, root_t, sizeof root_t);
         }
         mcd_set_rotation(out[i].rotation, local);
     }
-    return MCD_OK;
 }
 
 const mcd_codec_ops mcd_codec_rmapca_ops = {
-    MCD_CODEC_RMA_PCA, 0x50414D52u /* "RMAP" */, rmap_validate, rmap_resident_size, rmap_open_section,
-    rmap_scratch_size, rmap_sample};
+    MCD_CODEC_RMA_PCA, 0x50414D52u /* "RMAP" */, 2u, rmap_validate_section, rmap_validate, rmap_scratch_size,
+    rmap_sample};

@@ -1,13 +1,15 @@
 """Codec ``rma-pca``: seed 003's subspace representation, chosen by a PCA variance fraction
-(``mocodec encode --codec rma --pca-variance 0.95``), in one ``RMAP`` section (docs/FORMAT.md).
+(``mocodec encode --codec rma --pca-variance 0.95``), in one ``RMAP`` section (docs/FORMAT.md,
+version 2) that the runtime samples in place.
 
 The pipeline is the seed's: root alignment (§3: heading and root translation out, all six root
 DOFs for large tilts), compact virtual markers (Fig. 2b), PPCA behaviour segments and
 normalized-cut groups (§4.1), one PCA per group keeping the requested fraction of the variance
 (16-bit mean, 12-bit axes, §5.4), and per piece of a clip (a run of frames in one group) the
 coefficient trajectories as Catmull-Rom keys with adaptive control points on a quantization
-lattice (§5.1-5.2), entropy coded as in ``rma``. The root curves are coded the same way. The
-runtime rebuilds markers (mean + axes x coefficients), joint rotations from the markers by
+lattice (§5.1-5.2), stored as ``rma`` tracks (:mod:`.rma_bitstream`), three coefficients a
+track. The root curves are coded the same way. The runtime rebuilds markers (mean + axes x
+coefficients, dequantized from the codes as it samples), joint rotations from the markers by
 Gram-Schmidt, and re-applies the root.
 
 A variance fraction is not an error bound: this codec makes **no tolerance promise**. It
@@ -15,10 +17,8 @@ reports the error it reaches (measured through the C runtime like every codec).
 ``docs/RMA_STUDY.md`` measured why the default ``rma`` does not use a subspace: a max-error
 promise needs 43-140 of 204 components per group.
 
-Not coded: repeated clips (eq. 6). Measured in the PCA representation on the 10-clip subset
-(docs/RMA_STUDY.md), coefficient differences against the reconstructed primary made the asset
-8-12 % larger at the paper's 95 % and at max 6 cm, and 6 % smaller only at max 1 cm with one
-group.
+Repeated clips (§4.2, eq. 6) are coded with ``-O repeats=true``: measured to cost bytes on the
+dev set (docs/CODECS.md), so off by default.
 """
 from __future__ import annotations
 
@@ -38,13 +38,20 @@ from ..rma import repeats as RP
 from ..rma import segment as S
 from ..tolerance import Tolerance
 from . import CheckFn, CodecOutput, ProgressFn
-from . import rma
+from .rma import curve_track
+from .rma_bitstream import DEFAULT_GROUP_SHIFT
+from .rma_bitstream import payload as rmal_payload
 from .rma_reference import decode_payload
 
 SECTION_HEADER = 32
 JOINT_RECORD = 24
 GROUP_HEADER = 16
+CLIP_HEADER = 16
+PIECE_RECORD = 16
 NO_INDEX = 0xFFFF
+NO_PRIMARY = 0xFFFFFFFF
+SHARED_BIT = 0x80000000  # a piece's ``curves`` field names a shared curve set
+PER_NODE = 3  # coefficients per curve-set node: its translation's x, y, z
 MEAN_BITS, AXIS_BITS = 16, 12
 MAX_BLEND = 64
 
@@ -79,6 +86,9 @@ class RmaPcaSettings:
         Self-distance threshold of the analysis, RMS distance per marker.
     ref_frames : float, default 0.25
         Max error of a repeated piece's reference curve, in frames of its primary.
+    group_shift : int, default 4
+        The curve sets' key values come in groups of ``2**group_shift`` keys (as in ``rma``,
+        docs/FORMAT.md "RMAL"): larger groups, fewer bytes and slower random access.
     blend_seconds : float, default 0.06
         Width of the cross-fade between two pieces of a clip (the seed's clip-boundary
         smoothing, ~60 ms): each piece's curves reach half of it into the neighbour and the
@@ -96,6 +106,7 @@ class RmaPcaSettings:
     repeats: bool = False
     repeat_threshold_cm: float = 5.0
     ref_frames: float = 0.25
+    group_shift: int = DEFAULT_GROUP_SHIFT
     blend_seconds: float = 0.06
 
     def __post_init__(self) -> None:
@@ -118,6 +129,9 @@ class RmaPcaSettings:
             raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
         if not isinstance(self.repeats, bool):
             raise ValueError(f"repeats must be true or false, got {self.repeats!r}")
+        self.group_shift = int(self.group_shift)
+        if not 1 <= self.group_shift <= 6:
+            raise ValueError(f"group_shift must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shift}")
         self.blend_seconds = float(self.blend_seconds)
         if not 0.0 <= self.blend_seconds <= 0.5:
             raise ValueError(f"blend_seconds must be 0 ... 0.5, got {self.blend_seconds}")
@@ -226,16 +240,7 @@ def project(basis: GroupBasis, rows: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------ curves
-def _pseudo_motion(nodes: int, frames: int, frame_time: float) -> Motion:
-    """A carrier for curve sets: ``nodes`` nodes whose translations are the curves."""
-    sk = Skeleton([f"c{i}" for i in range(nodes)], np.full(nodes, -1), np.zeros((nodes, 3)),
-                  [() for _ in range(nodes)], np.zeros(nodes, dtype=bool))
-    rot = np.zeros((frames, nodes, 4))
-    rot[..., 3] = 1.0
-    return Motion(sk, rot, np.zeros((frames, nodes, 3)), frame_time, "curves")
-
-
-def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> Track:
+def _curve_track(values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> Track:
     """One scalar (or 3-vector) curve as an ``rma`` translation track within ``budget`` on
     every frame (max abs deviation per component)."""
     values = np.asarray(values, dtype=np.float64)
@@ -251,21 +256,38 @@ def _curve_track(node: int, values: np.ndarray, budget: float, quant_fraction: f
     keys, kv, _ = fit_keys(values, np.full(frames, budget * 1.0000001),
                            lambda r: np.max(np.abs(r - values), axis=1), mandatory, q.roundtrip,
                            grid=grid if frames > 4 * grid else 1)
-    t = Track(node=node, kind=KIND_TRANSLATION, values=values, target=values,
-               ref=np.zeros(4), axis=np.zeros(3))
+    t = Track(node=0, kind=KIND_TRANSLATION, values=values, target=values,
+              ref=np.zeros(4), axis=np.zeros(3))
     t.keys, t.key_values, t.quantizer = keys, kv, q
     return t
 
 
-def curve_set(curves: list[np.ndarray], budgets: list[float], frame_time: float,
-              s: RmaPcaSettings, first: list[Track] | None = None) -> bytes:
-    """An ``RMAL`` payload whose node ``i`` translation carries ``curves[i]`` (after the tracks
-    ``first``, already fitted, which take the first nodes)."""
-    first = first or []
-    frames = len(curves[0]) if curves else len(first[0].values)
-    tracks = first + [_curve_track(len(first) + i, c, b, s.quant_fraction, s.key_grid)
-                      for i, (c, b) in enumerate(zip(curves, budgets))]
-    return rma.serialize(_pseudo_motion(len(tracks), frames, frame_time), tracks, s.key_grid)
+def pack_coefficients(coef: np.ndarray) -> list[np.ndarray]:
+    """Coefficients (F, k) as the curve-set nodes carry them: node j's translation holds
+    coefficients 3j, 3j + 1, 3j + 2 (zeros past k)."""
+    frames, k = coef.shape
+    padded = np.zeros((frames, PER_NODE * max(-(-k // PER_NODE), 1)))
+    padded[:, :k] = coef
+    return [padded[:, j:j + PER_NODE] for j in range(0, padded.shape[1], PER_NODE)]
+
+
+def curve_set(tracks: list[Track | None], frames: int, group_shift: int) -> bytes:
+    """An ``RMAL`` v2 payload whose node ``i`` translation is ``tracks[i]`` (None: a node at
+    rest, whose translation is zero)."""
+    modes = [(0, 0 if t is None else 2, 0) for t in tracks]
+    return rmal_payload(frames, modes, [], [curve_track(t) for t in tracks if t is not None], group_shift)
+
+
+def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first: list[Track] | None = None) -> bytes:
+    """The curve set of coefficients (F, k) within ``budget`` each, after the tracks ``first``
+    (a repeated piece's reference curve); a group without components has one resting node."""
+    frames = len(coef)
+    tracks: list[Track | None] = list(first or [])
+    if coef.shape[1] == 0:
+        tracks.append(None)
+    else:
+        tracks += [_curve_track(c, budget, s.quant_fraction, s.key_grid) for c in pack_coefficients(coef)]
+    return curve_set(tracks, frames, s.group_shift)
 
 
 def track_curve(t: Track) -> np.ndarray:
@@ -274,10 +296,19 @@ def track_curve(t: Track) -> np.ndarray:
     return catmull_rom(t.keys, t.quantizer.roundtrip(t.key_values), x)[:, 0]
 
 
-def primary_coefficients(payload: bytes, k: int, x: np.ndarray) -> np.ndarray:
-    """Coefficients (len(x), k) the runtime reconstructs from a piece's curve set at ``x``."""
-    sk = _pseudo_motion(k, 1, 1.0).skeleton
-    return decode_payload(payload, sk, x)[1][:, :k, 0]
+def set_coefficients(payload: bytes, k: int, x: np.ndarray, first: int = 0) -> np.ndarray:
+    """Coefficients (len(x), k) the runtime reconstructs from a coefficient curve set at
+    ``x`` (its nodes from ``first`` on), with the reference decoder."""
+    nodes = struct.unpack_from("<I", payload, 8)[0]
+    sk = _carrier(nodes)
+    trans = decode_payload(payload, sk, x)[1][:, first:]
+    return trans.reshape(len(x), -1)[:, :k]
+
+
+def _carrier(nodes: int) -> Skeleton:
+    """A skeleton of ``nodes`` unconnected nodes at the origin: what curve sets decode against."""
+    return Skeleton([f"c{i}" for i in range(nodes)], np.full(nodes, -1), np.zeros((nodes, 3)),
+                    [() for _ in range(nodes)], np.zeros(nodes, dtype=bool))
 
 
 def root_curves(root: PP.RootTrack, cm_per_unit: float, s: RmaPcaSettings) -> tuple[list[np.ndarray], list[float]]:
@@ -323,18 +354,30 @@ def joint_table(layout: PP.MarkerLayout) -> bytes:
     return b"".join(out)
 
 
-CLIP_HEADER, PIECE_RECORD = 24, 8
+def clip_payload(frames: int, full: bool, pieces: list[tuple[int, int, int, int]], sets: list[bytes]) -> bytes:
+    """A clip's payload: its frames, root mode, pieces (first frame, group, curves, primary:
+    ``curves`` an offset into ``sets`` or ``SHARED_BIT | s``, ``primary`` a shared set index or
+    ``NO_PRIMARY``), then its own curve sets (the root's first) back to back."""
+    table = CLIP_HEADER + PIECE_RECORD * len(pieces)
+    size = table + sum(len(c) for c in sets)
+    head = struct.pack("<4I", size, frames, len(pieces), int(full))
+    return head + b"".join(struct.pack("<4I", *p) for p in pieces) + b"".join(sets)
 
 
-def clip_payload(frames: int, curves_offset: int, full: bool, pieces: list[tuple[int, int]],
-                 repeated: list[tuple[int, int]] = ()) -> bytes:
-    """A clip's record: its frames, root mode, where its curve sets start in the embedded
-    ``RMAL`` section (the root's, then one per piece, back to back), its pieces (first frame,
-    group) and its repeated pieces (piece index, offset of the primary's curve set)."""
-    size = CLIP_HEADER + PIECE_RECORD * (len(pieces) + len(repeated))
-    head = struct.pack("<6I", size, frames, len(pieces), int(full), curves_offset, len(repeated))
-    return (head + b"".join(struct.pack("<II", *p) for p in pieces)
-            + b"".join(struct.pack("<II", *r) for r in repeated))
+def section_prefix(clips: int, markers: int, joints: bytes, bases: list[GroupBasis], blend: int,
+                   shared: list[bytes]) -> bytes:
+    """Everything the clips share: header, joint table, the offsets of the group records and
+    of the shared curve sets, the group records, the shared curve sets."""
+    records = [group_record(b) for b in bases]
+    tables = SECTION_HEADER + len(joints) + 4 * (len(records) + len(shared))
+    group_at = tables + np.concatenate(([0], np.cumsum([len(r) for r in records])))
+    shared_at = int(group_at[-1]) + np.concatenate(([0], np.cumsum([len(c) for c in shared])))
+    end = int(shared_at[-1])
+    header = struct.pack("<8I", clips, len(records), markers, len(joints) // JOINT_RECORD, blend, len(shared), end, 0)
+    out = (header + joints + np.asarray(group_at[:-1], dtype="<u4").tobytes()
+           + np.asarray(shared_at[:-1], dtype="<u4").tobytes() + b"".join(records) + b"".join(shared))
+    assert len(out) == end
+    return out
 
 
 # ------------------------------------------------------------------------ repetition (§4.2, eq. 6)
@@ -461,8 +504,7 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
             b = bases[sp.group]
             coef = project(b, flats[sp.clip][lo:hi + 1])
             if direct:
-                curves = [coef[:, i] for i in range(b.k)] or [np.zeros(hi - lo + 1)]
-                sets[idx] = curve_set(curves, [budget] * len(curves), motions[sp.clip].frame_time, s)
+                sets[idx] = coefficient_set(coef, budget, s)
                 continue
             # Eq. 6: a reference curve into the primary's curve set (its frames, extended by one
             # frame per frame past the interval) and the differences to the primary as the
@@ -473,44 +515,47 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
             ref += np.where(x < sp.start, x - sp.start, 0.0) + np.where(x > sp.start + len(sp.ref) - 1,
                                                                          x - (sp.start + len(sp.ref) - 1), 0.0)
             ref = np.clip(ref, 0.0, phi - plo)
-            ref_track = _curve_track(0, ref, s.ref_frames, s.quant_fraction, s.key_grid)
+            ref_track = _curve_track(ref, s.ref_frames, s.quant_fraction, s.key_grid)
             at = np.clip(track_curve(ref_track), 0.0, phi - plo)
-            diff = coef - primary_coefficients(sets[sp.primary], b.k, at)
-            sets[idx] = curve_set([diff[:, i] for i in range(b.k)], [budget] * b.k,
-                                  motions[sp.clip].frame_time, s, first=[ref_track])
-    curve_payloads: list[bytes] = []
+            diff = coef - set_coefficients(sets[sp.primary], b.k, at)
+            sets[idx] = coefficient_set(diff, budget, s, first=[ref_track])
+    # A primary's curve set is shared (in the section's prefix): its own clip and every clip
+    # that repeats it read it there. Every other set lies in its clip's payload.
+    primaries = sorted({sp.primary for sp in plan if sp.primary >= 0})
+    shared_index = {idx: i for i, idx in enumerate(primaries)}
     clip_payloads, stats = [], []
-    set_offset: dict[int, int] = {}
-    clip_sets: dict[int, int] = {}
     for ci, (m, pr) in enumerate(zip(motions, prepared)):
         rc, rb = root_curves(pr.root, cm, s)
-        clip_sets[ci] = 16 + sum(len(c) for c in curve_payloads)
-        curve_payloads.append(curve_set(rc, rb, m.frame_time, s))
-        for idx in (j for j, q in enumerate(plan) if q.clip == ci):
-            set_offset[idx] = 16 + sum(len(c) for c in curve_payloads)
-            curve_payloads.append(sets[idx])
-    for ci, (m, pr) in enumerate(zip(motions, prepared)):
+        own = [curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid) for c, bud in zip(rc, rb)],
+                         m.frame_count, s.group_shift)]
         mine = [j for j, q in enumerate(plan) if q.clip == ci]
-        rows = [(plan[j].start, plan[j].group) for j in mine]
-        repeated = [(pos, set_offset[plan[j].primary]) for pos, j in enumerate(mine) if plan[j].primary >= 0]
-        clip_payloads.append(clip_payload(m.frame_count, clip_sets[ci], pr.root.full, rows, repeated))
+        at = CLIP_HEADER + PIECE_RECORD * len(mine) + len(own[0])
+        rows = []
+        for j in mine:
+            sp = plan[j]
+            if j in shared_index:
+                curves = SHARED_BIT | shared_index[j]
+            else:
+                curves = at
+                own.append(sets[j])
+                at += len(sets[j])
+            rows.append((sp.start, sp.group, curves, shared_index[sp.primary] if sp.primary >= 0 else NO_PRIMARY))
+        clip_payloads.append(clip_payload(m.frame_count, pr.root.full, rows, own))
+        repeated = [j for j in mine if plan[j].primary >= 0]
         stats.append({"pieces": len(rows), "groups": sorted({r[1] for r in rows}),
                       "components": [bases[r[1]].k for r in rows], "six_dof_root": pr.root.full,
                       "repeated_pieces": len(repeated),
-                      "repeated_frames": int(sum(plan[j].stop - plan[j].start for j in mine if plan[j].primary >= 0))})
+                      "repeated_frames": int(sum(plan[j].stop - plan[j].start for j in repeated)),
+                      "root_curve_bytes": len(own[0])})
         if progress:
             progress(m.name)
     stats[0]["encode_seconds"] = time.perf_counter() - t0
-    curves_section = rma.section_prefix(len(curve_payloads)) + b"".join(rma.place(curve_payloads))
-    groups_blob = b"".join(group_record(b) for b in bases)
-    joints = joint_table(shared)
-    header = struct.pack("<8I", len(motions), n_groups, shared.marker_count, len(shared.joints),
-                         len(groups_blob), len(curves_section), blend, 0)
-    prefix = header + joints + groups_blob + curves_section
-    basis_bytes = len(groups_blob)
+    prefix = section_prefix(len(motions), shared.marker_count, joint_table(shared), bases, blend,
+                            [sets[j] for j in primaries])
     for st in stats:
         st["shared_section_bytes"] = len(prefix)
-    stats[0]["basis_bytes"] = basis_bytes
+    stats[0]["basis_bytes"] = sum(len(group_record(b)) for b in bases)
+    stats[0]["shared_curve_bytes"] = sum(len(sets[j]) for j in primaries)
     stats[0]["analysis_seconds"] = time.perf_counter() - started
     return CodecOutput(payloads=clip_payloads, section_prefix=prefix, stats=stats, promise=False,
                        settings={"pca_variance": s.variance, "groups": n_groups, "blend_frames": blend,
