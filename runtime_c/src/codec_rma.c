@@ -1,13 +1,14 @@
 /* Codec `rma`: per-track Catmull-Rom keys placed freely in time, sampled in place from the
  * asset's bytes (docs/FORMAT.md, RMAL version 2).
  *
- * A track's key times are a bit mask over the cells of its key grid with a rank directory (a
- * cell holding more than one key is listed, once per extra key, in a short sorted list); its
- * key values come in groups of G keys: a fixed-size group entry
- * (bit offset, residual widths, the first key whole) and fixed-width residuals from a
- * prediction, outliers stored whole. Random access finds the key at or before x by rank and
- * decodes the prefix of one or two groups; sequential playback keeps each track's four keys
- * and a decoding cursor in the scratch and reads one key record per key interval. */
+ * A track's keys come in groups of G. A fixed-size group entry gives the bit offset of the
+ * group's records, the first key whole (frame and value) and the widths of the records'
+ * fields; each further key is one record: its gap to the key before and, per component, its
+ * residual from a prediction, at the group's widths, outliers stored whole after the records.
+ * A seek table names the group at every 2^s-th frame. Random access finds the group by the
+ * seek table and a step or two, then decodes at most G records; sequential playback keeps
+ * each track's four keys and a decoding cursor in the scratch and decodes one record per key
+ * interval. */
 #include <string.h>
 
 #include "internal.h"
@@ -15,19 +16,26 @@
 #define SECTION_HEADER 16u
 #define PAYLOAD_HEADER 32u
 #define MAX_GROUP_SHIFT 6u
+#define MAX_SEEK_SHIFT 24u
 #define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
-#define DIR_SHIFT 8u        /* a rank directory entry every 256 cells (4 mask words) */
-#define WIDTH_BITS 5u
+#define WIDTH_BITS 4u       /* a field width, 0 ... 15 */
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
 
 static uint32_t desc_size(uint32_t kind) {
-    return kind == KIND_MRP ? 32u : kind == KIND_TWIST ? 44u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 24u : 0u;
+    return kind == KIND_MRP ? 28u : kind == KIND_TWIST ? 40u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 20u : 0u;
 }
 
 static uint32_t kind_dims(uint32_t kind) {
     return kind == KIND_TWIST ? 4u : 3u;
+}
+
+/* Bits that hold every value 0 ... n (at least 1). */
+static uint32_t bits_for(uint32_t n) {
+    uint32_t b = 1;
+    while (b < 32u && (n >> b)) ++b;
+    return b;
 }
 
 /* ---------------------------------------------------------------- payload layout */
@@ -39,11 +47,11 @@ typedef struct header {
 /* Everything about one track that its descriptor and the clip's frame count give. Offsets
  * are bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, grid_shift, split, predictor, offset_bits, group_shift;
-    uint8_t abits[4];
-    uint32_t keys, cells, words, extras, extra_bits, groups, entry_bits, data_bytes;
+    uint8_t kind, dims, split, predictor, offset_bits, seek_shift, group_shift, frame_bits;
+    uint8_t group_bits, abits[4];
+    uint32_t keys, groups, seeks, entry_bits, data_bytes;
     float step[4];
-    uint32_t mask, dir, extra, table, data, end;
+    uint32_t seek, table, data, end;
 } track_layout;
 
 static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
@@ -78,23 +86,27 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t gro
     t->kind = d[0];
     if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
     t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the key grid's shift (bits 0-1), the first segment detached (bit 2). */
-    t->grid_shift = d[1] & 3u;
-    t->split = (d[1] >> 2) & 1u;
-    t->predictor = d[2];
-    t->offset_bits = d[3];
+    /* Byte 1: the first segment detached (bit 0), the predictor (bits 1-2). */
+    t->split = d[1] & 1u;
+    t->predictor = (d[1] >> 1) & 3u;
+    t->offset_bits = d[2];
+    t->seek_shift = d[3];
     t->group_shift = (uint8_t)group_shift;
     t->keys = mcd_rd_u32(d + 4);
     t->data_bytes = mcd_rd_u32(d + 8);
-    t->extras = mcd_rd_u32(d + 12);
     if ((d[1] >> 3) || t->predictor > 2 || t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
+    if (t->seek_shift > MAX_SEEK_SHIFT) return MCD_ERROR_MALFORMED;
     if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
-    if ((t->data_bytes & 3u) || t->extras >= t->keys) return MCD_ERROR_MALFORMED;
-    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 16);
-    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 40);
-    entry = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims + t->grid_shift;
+    if (t->data_bytes & 3u) return MCD_ERROR_MALFORMED;
+    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 12);
+    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 36);
+    t->frame_bits = (uint8_t)bits_for(frames - 1u);
+    t->groups = ((t->keys - 1u) >> group_shift) + 1u;
+    t->group_bits = (uint8_t)bits_for(t->groups - 1u);
+    t->seeks = ((frames - 1u) >> t->seek_shift) + 1u;
+    entry = t->offset_bits + (uint64_t)t->frame_bits + WIDTH_BITS * (1u + (uint64_t)t->dims);
     for (c = 0; c < 4; ++c) {
-        t->abits[c] = d[20 + c];
+        t->abits[c] = d[16 + c];
         if (c < t->dims) {
             if (t->abits[c] < 1 || t->abits[c] > 31) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds(t->step[c]) || t->step[c] < 0.0f) return MCD_ERROR_MALFORMED;
@@ -104,116 +116,64 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t gro
         }
     }
     t->entry_bits = (uint32_t)entry;
-    t->cells = frames > 1u ? ((frames - 2u) >> t->grid_shift) + 1u : 0u;
-    t->words = (t->cells + 63u) / 64u;
-    t->groups = ((t->keys - 1u) >> group_shift) + 1u;
-    /* Extra keys name their cell: as many bits as the largest cell index needs. */
-    for (t->extra_bits = 1; t->extra_bits < 32u && t->cells > (1u << t->extra_bits); ++t->extra_bits) {}
-    t->mask = at;
-    t->dir = t->mask + 8u * t->words;
-    t->extra = t->dir + 4u * ((t->words + 3u) / 4u);
-    end = t->extra + 4u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u);
+    t->seek = at;
+    end = at + 4u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u);
     if (end > limit) return MCD_ERROR_MALFORMED;
     t->table = (uint32_t)end;
     end += 4u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u);
-    t->data = (uint32_t)(end < 0xFFFFFFFFu ? end : 0xFFFFFFFFu);
+    if (end > limit) return MCD_ERROR_MALFORMED;
+    t->data = (uint32_t)end;
     end += t->data_bytes;
     if (end > limit) return MCD_ERROR_MALFORMED;
     t->end = (uint32_t)end;
     return MCD_OK;
 }
 
-/* ---------------------------------------------------------------- key times */
-static uint64_t mask_word(const uint8_t* p, const track_layout* t, uint32_t w) {
-    return mcd_rd_u64(p + t->mask + 8u * (size_t)w);
-}
-
-static int cell_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    return (int)((mask_word(p, t, c >> 6) >> (c & 63u)) & 1u);
-}
-
-/* Extra keys in cells before c: a binary search of the sorted list. */
-static uint32_t extras_before(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t lo = 0, hi = t->extras;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2u;
-        if (mcd_read_bits(p + t->extra, (uint64_t)mid * t->extra_bits, t->extra_bits) < c) lo = mid + 1u; else hi = mid;
-    }
-    return lo;
-}
-
-/* Keys (not counting key 0) in cells [0, c): the directory entry of c's 256-cell block, its
- * words before c, and the extra keys there. */
-static uint32_t rank(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w = c >> 6, block = c >> DIR_SHIFT, n = mcd_rd_u32(p + t->dir + 4u * block), k;
-    for (k = block << 2; k < w; ++k) n += mcd_popcount(mask_word(p, t, k));
-    if (c & 63u) n += mcd_popcount(mask_word(p, t, w) & (((uint64_t)1 << (c & 63u)) - 1u));
-    return n + (t->extras ? extras_before(p, t, c) : 0u);
-}
-
-/* Keys in cell c. */
-static uint32_t keys_in_cell(const uint8_t* p, const track_layout* t, uint32_t c) {
-    if (!cell_set(p, t, c)) return 0;
-    return t->extras ? 1u + extras_before(p, t, c + 1u) - extras_before(p, t, c) : 1u;
-}
-
-/* The first set cell at or after c, or t->cells when there is none. */
-static uint32_t next_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w;
-    uint64_t m;
-    if (c >= t->cells) return t->cells;
-    w = c >> 6;
-    m = mask_word(p, t, w) & (~(uint64_t)0 << (c & 63u));
-    while (!m) {
-        if (++w >= t->words) return t->cells;
-        m = mask_word(p, t, w);
-    }
-    return (w << 6) + mcd_lowest_bit(m);
-}
-
-/* The last set cell at or before c (c < cells), or UINT32_MAX when there is none. */
-static uint32_t prev_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w = c >> 6;
-    uint64_t m = mask_word(p, t, w);
-    if ((c & 63u) != 63u) m &= ((uint64_t)1 << ((c & 63u) + 1u)) - 1u;
-    while (!m) {
-        if (w == 0) return UINT32_MAX;
-        m = mask_word(p, t, --w);
-    }
-    return (w << 6) + mcd_highest_bit(m);
-}
-
-/* ---------------------------------------------------------------- key values */
+/* ---------------------------------------------------------------- key decoding */
 /* Decodes a track's keys in index order from a group's first key on. */
 typedef struct cursor {
-    uint32_t key;      /* index of the key the next call decodes */
-    uint32_t left;     /* keys left in the current group after the last decoded one */
-    uint32_t bit;      /* bit position (in the data area) of the next key record */
-    uint32_t exc;      /* bit position of the current group's next outlier */
-    uint8_t w[4];      /* residual widths of the current group */
-    uint32_t keybits;  /* bits of one key record in the current group */
+    uint32_t key;        /* index of the key the next call decodes */
+    uint32_t left;       /* records left in the current group */
+    uint32_t bit;        /* bit position (in the data area) of the next record */
+    uint32_t exc;        /* bit position of the current group's next outlier */
+    uint32_t frame;      /* frame of the last decoded key */
+    uint32_t keybits;    /* bits of one record in the current group */
+    uint8_t w[5];        /* field widths of the current group: gap, then the components */
+    uint8_t pad[3];
     int32_t q[4], q2[4]; /* the last two decoded values, for the prediction */
 } cursor;
 
+/* floor(v / 2) for any sign (C's division truncates; a right shift of a negative number is
+ * implementation-defined): the logical shift with the sign bit put back. */
 static int64_t floor_half(int64_t v) {
-    return v >= 0 ? v / 2 : -((-v + 1) / 2);
+    uint64_t u = (uint64_t)v >> 1;
+    return (int64_t)(v < 0 ? u | ((uint64_t)1 << 63) : u);
 }
 
-/* Enter group g: its entry gives the record layout and the first key, written to q and o. */
-static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4], uint32_t* o) {
-    const uint8_t* table = p + t->table;
+static const uint8_t* entry_of(const uint8_t* p, const track_layout* t) {
+    return p + t->table;
+}
+
+/* The first key's frame of group g. */
+static uint32_t group_frame(const uint8_t* p, const track_layout* t, uint32_t g) {
+    return mcd_read_bits(entry_of(p, t), (uint64_t)g * t->entry_bits + t->offset_bits, t->frame_bits);
+}
+
+/* Enter group g: its entry gives the record layout and the first key (value into q). */
+static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4]) {
+    const uint8_t* table = entry_of(p, t);
     uint64_t bit = (uint64_t)g * t->entry_bits;
     uint32_t c, n, first = g << t->group_shift;
     cur->bit = mcd_read_bits(table, bit, t->offset_bits);
     bit += t->offset_bits;
-    cur->keybits = t->grid_shift;
-    for (c = 0; c < t->dims; ++c) {
+    cur->frame = mcd_read_bits(table, bit, t->frame_bits);
+    bit += t->frame_bits;
+    cur->keybits = 0;
+    for (c = 0; c <= t->dims; ++c) {
         cur->w[c] = (uint8_t)mcd_read_bits(table, bit, WIDTH_BITS);
         cur->keybits += cur->w[c];
         bit += WIDTH_BITS;
     }
-    *o = mcd_read_bits(table, bit, t->grid_shift);
-    bit += t->grid_shift;
     for (c = 0; c < t->dims; ++c) {
         q[c] = cur->q[c] = cur->q2[c] = mcd_read_signed(table, bit, t->abits[c]);
         bit += t->abits[c];
@@ -224,51 +184,91 @@ static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, curs
     cur->key = first + 1u;
 }
 
-/* Decode the key the cursor points at (its value into q, its in-cell offset into o). */
-static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4], uint32_t* o) {
+/* Decode the key the cursor points at: its value into q, its frame into cur->frame. */
+static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4]) {
     const uint8_t* data = p + t->data;
-    uint32_t c, bit;
+    uint64_t w;
+    uint32_t c, shift, wg;
     if (cur->left == 0) {
-        group_open(p, t, cur->key >> t->group_shift, cur, q, o);
+        group_open(p, t, cur->key >> t->group_shift, cur, q);
         return;
     }
-    bit = cur->bit;
-    *o = mcd_read_bits(data, bit, t->grid_shift);
-    bit += t->grid_shift;
-    for (c = 0; c < t->dims; ++c) {
-        uint32_t w = cur->w[c];
-        int64_t v = cur->q[c];
-        if (w) {
-            int32_t r = mcd_read_signed(data, bit, w);
-            bit += w;
-            if (r == -(int32_t)((uint32_t)1 << (w - 1u)) && w > 0) {
-                v = mcd_read_signed(data, cur->exc, t->abits[c]); /* an outlier, stored whole */
-                cur->exc += t->abits[c];
-            } else {
-                v += floor_half((v - cur->q2[c]) * t->predictor + 1) + r;
-            }
+    /* One load holds the whole record unless its widths add up past 57 bits. */
+    w = mcd_rd_u64(data + (cur->bit >> 3)) >> (cur->bit & 7u);
+    wg = cur->w[0];
+    if (cur->keybits > 57u) {
+        /* Rare wide records: field by field. */
+        uint32_t b = cur->bit;
+        uint32_t gap = mcd_read_bits(data, b, wg);
+        b += wg;
+        if (wg && gap == ((uint32_t)1 << wg) - 1u) {
+            cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
+            cur->exc += t->frame_bits;
         } else {
-            v += floor_half((v - cur->q2[c]) * t->predictor + 1);
+            cur->frame += gap + 1u;
         }
-        /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-        if (v > MAX_Q) v = MAX_Q;
-        if (v < -MAX_Q) v = -MAX_Q;
-        cur->q2[c] = cur->q[c];
-        q[c] = cur->q[c] = (int32_t)v;
+        for (c = 0; c < t->dims; ++c) {
+            uint32_t wc = cur->w[c + 1];
+            int64_t v = cur->q[c] + floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
+            if (wc) {
+                int32_t r = mcd_read_signed(data, b, wc);
+                b += wc;
+                if (r == -(int32_t)((uint32_t)1 << (wc - 1u))) {
+                    v = mcd_read_signed(data, cur->exc, t->abits[c]);
+                    cur->exc += t->abits[c];
+                } else {
+                    v += r;
+                }
+            }
+            if (v > MAX_Q) v = MAX_Q;
+            if (v < -MAX_Q) v = -MAX_Q;
+            cur->q2[c] = cur->q[c];
+            q[c] = cur->q[c] = (int32_t)v;
+        }
+    } else {
+        uint32_t gap = (uint32_t)(w & (((uint64_t)1 << wg) - 1u));
+        if (wg && gap == ((uint32_t)1 << wg) - 1u) { /* an outlier gap: the frame whole */
+            cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
+            cur->exc += t->frame_bits;
+        } else {
+            cur->frame += gap + 1u;
+        }
+        shift = wg;
+        for (c = 0; c < t->dims; ++c) {
+            uint32_t wc = cur->w[c + 1];
+            int64_t v = cur->q[c];
+            if (t->predictor) v += floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
+            if (wc) {
+                uint32_t u = (uint32_t)((w >> shift) & (((uint64_t)1 << wc) - 1u)), sign = (uint32_t)1 << (wc - 1u);
+                shift += wc;
+                if (u == sign) { /* the escape code: an outlier, stored whole */
+                    v = mcd_read_signed(data, cur->exc, t->abits[c]);
+                    cur->exc += t->abits[c];
+                } else {
+                    v += (int64_t)(u ^ sign) - (int64_t)sign;
+                }
+            }
+            /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
+            if (v > MAX_Q) v = MAX_Q;
+            if (v < -MAX_Q) v = -MAX_Q;
+            cur->q2[c] = cur->q[c];
+            q[c] = cur->q[c] = (int32_t)v;
+        }
     }
-    cur->bit = bit;
+    cur->bit += cur->keybits;
     cur->left--;
     cur->key++;
 }
 
-/* ---------------------------------------------------------------- sampling state */
-/* Where a key's time lies: its cell (NO_CELL for key 0, at frame 0) and how many later keys
- * share that cell. */
-#define NO_CELL UINT32_MAX
-typedef struct key_place {
-    uint32_t cell, after;
-} key_place;
+/* The group holding the last key at or before frame xi: the seek table's group, then the
+ * next ones while they start no later than xi. */
+static uint32_t find_group(const uint8_t* p, const track_layout* t, uint32_t xi) {
+    uint32_t g = mcd_read_bits(p + t->seek, (uint64_t)(xi >> t->seek_shift) * t->group_bits, t->group_bits);
+    while (g + 1u < t->groups && group_frame(p, t, g + 1u) <= xi) ++g;
+    return g;
+}
 
+/* ---------------------------------------------------------------- sampling state */
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
  * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 3. */
 typedef struct track_state {
@@ -276,13 +276,12 @@ typedef struct track_state {
     mcd_quat ref;
     float axis[4];
     uint32_t valid;
-    uint32_t i;          /* the segment [key i, key i + 1] the curve below belongs to */
-    key_place place[4];  /* where keys i - 1 ... i + 2 lie */
-    float t[4];          /* their frames */
-    float v[4][4];       /* their values */
+    uint32_t i;    /* the segment [key i, key i + 1] the curve below belongs to */
+    float t[4];    /* frames of keys i - 1 ... i + 2 */
+    float v[4][4]; /* their values */
     float t1, t2, inv_h;
     float coef[4][4];
-    cursor cur;          /* decodes key i + 3 next (when it exists) */
+    cursor cur;    /* decodes key i + 3 next (when it exists) */
 } track_state;
 
 typedef struct node_plan {
@@ -301,52 +300,17 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-static float dequantize(const track_layout* t, uint32_t c, int32_t q) {
+/* Window slot `slot` from a decoded key. */
+static void store_key(track_state* ts, uint32_t slot, const int32_t q[4]) {
+    uint32_t c;
+    ts->t[slot] = (float)ts->cur.frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    return (float)((double)q * (double)t->step[c]);
+    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
-static float frame_of(const track_layout* t, uint32_t cell, uint32_t offset) {
-    return cell == NO_CELL ? 0.0f : (float)(1u + (cell << t->grid_shift) + offset);
-}
-
-/* The place of the key after one at `k`. */
-static key_place place_next(const uint8_t* p, const track_layout* t, key_place k) {
-    key_place n;
-    if (k.cell != NO_CELL && k.after > 0) {
-        n.cell = k.cell;
-        n.after = k.after - 1u;
-        return n;
-    }
-    n.cell = next_set(p, t, k.cell == NO_CELL ? 0u : k.cell + 1u);
-    n.after = n.cell < t->cells ? keys_in_cell(p, t, n.cell) - 1u : 0u;
-    return n;
-}
-
-/* The place of the key before one at `k` (k is not key 0). */
-static key_place place_prev(const uint8_t* p, const track_layout* t, key_place k) {
-    key_place n;
-    if (keys_in_cell(p, t, k.cell) > k.after + 1u) { /* not the first key of its cell */
-        n.cell = k.cell;
-        n.after = k.after + 1u;
-        return n;
-    }
-    n.cell = k.cell ? prev_set(p, t, k.cell - 1u) : NO_CELL;
-    n.after = 0;
-    return n;
-}
-
-/* The in-cell offset of key k >= 1 (0 on a grid of one frame), read directly. */
-static uint32_t key_offset(const uint8_t* p, const track_layout* t, uint32_t k) {
-    uint32_t g = k >> t->group_shift, pos = k & ((1u << t->group_shift) - 1u), c, keybits = t->grid_shift;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t base;
-    if (!t->grid_shift) return 0;
-    base = mcd_read_bits(p + t->table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    for (c = 0; c < t->dims; ++c) keybits += mcd_read_bits(p + t->table, bit + WIDTH_BITS * c, WIDTH_BITS);
-    if (pos == 0) return mcd_read_bits(p + t->table, bit + WIDTH_BITS * t->dims, t->grid_shift);
-    return mcd_read_bits(p + t->data, (uint64_t)base + (uint64_t)(pos - 1u) * keybits, t->grid_shift);
+static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
+    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
+    ts->t[to] = ts->t[from];
 }
 
 static void set_curve(track_state* ts) {
@@ -370,75 +334,56 @@ static void set_curve(track_state* ts) {
     ts->valid = 1;
 }
 
-/* Decode the key after slot `slot - 1`'s into slot `slot`. */
-static void load_next(const uint8_t* p, track_state* ts, uint32_t slot) {
-    int32_t q[4];
-    uint32_t o, c;
-    cursor_next(p, &ts->L, &ts->cur, q, &o);
-    ts->place[slot] = place_next(p, &ts->L, ts->place[slot - 1u]);
-    ts->t[slot] = frame_of(&ts->L, ts->place[slot].cell, o);
-    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = dequantize(&ts->L, c, q[c]);
-}
-
-static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
-    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
-    ts->t[to] = ts->t[from];
-    ts->place[to] = ts->place[from];
-}
-
-/* The last key at or before integer frame xi and its place. */
-static uint32_t key_at_or_before(const uint8_t* p, const track_layout* t, uint32_t xi, key_place* at) {
-    uint32_t cx, r, n, j;
-    at->cell = NO_CELL;
-    at->after = 0;
-    if (xi == 0) return 0;
-    cx = (xi - 1u) >> t->grid_shift;
-    r = rank(p, t, cx);
-    n = keys_in_cell(p, t, cx);
-    for (j = n; j > 0; --j)
-        if (1u + (cx << t->grid_shift) + key_offset(p, t, r + j) <= xi) {
-            at->cell = cx;
-            at->after = n - j;
-            return r + j;
-        }
-    if (r == 0) return 0;
-    at->cell = prev_set(p, t, cx - 1u); /* r > 0: an earlier cell holds keys */
-    return r;
-}
-
 /* Random access: the segment holding frame position x, its four keys decoded afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, i, first, k, c, o, xi = (uint32_t)x;
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, g, k, i, s;
     int32_t q[4];
-    key_place at;
-    /* i: the last key at or before x; the segment [i, i + 1], the last one at the clip's end. */
-    i = key_at_or_before(p, t, xi, &at);
-    if (i >= last) { /* x is the last frame: the last segment */
-        i = last - 1u;
-        at = place_prev(p, t, at);
+    float ring_t[4], ring_v[4][4]; /* the last four decoded keys, key k at k & 3 */
+    cursor* cur = &ts->cur;
+    g = find_group(p, t, xi);
+    /* Key i - 1 lies in group g - 1 when key i is g's first: x before g's second key, or g's
+     * second key the last (whose segment is the one before it). */
+    if (g > 0) {
+        cursor peek;
+        int32_t tmp[4];
+        group_open(p, t, g, &peek, tmp);
+        if (peek.left == 0) {
+            --g;
+        } else {
+            cursor_next(p, t, &peek, tmp);
+            if (peek.frame > xi || peek.key - 1u == last) --g;
+        }
+    }
+    /* Decode on from group g's first key to the first key after x, then to key i + 2. */
+    group_open(p, t, g, cur, q);
+    k = g << t->group_shift;
+    store_key(ts, 0, q);
+    ring_t[k & 3u] = ts->t[0];
+    memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
+    while (k < last && ring_t[k & 3u] <= (float)xi) {
+        cursor_next(p, t, cur, q);
+        ++k;
+        store_key(ts, 0, q);
+        ring_t[k & 3u] = ts->t[0];
+        memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
+    }
+    i = ring_t[k & 3u] > (float)xi ? k - 1u : k;
+    if (i >= last) i = last - 1u; /* x at the last frame: the last segment */
+    while (k < i + 2u && k < last) {
+        cursor_next(p, t, cur, q);
+        ++k;
+        store_key(ts, 0, q);
+        ring_t[k & 3u] = ts->t[0];
+        memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
     }
     ts->i = i;
-    ts->place[1] = at;
-    ts->place[0] = i == 0 ? at : place_prev(p, t, at);
-    /* Decode keys from i - 1 (or 0) on: open its group and walk the records before it. */
-    first = i ? i - 1u : 0u;
-    group_open(p, t, first >> t->group_shift, &ts->cur, q, &o);
-    for (k = first & ~((1u << t->group_shift) - 1u); k < first; ++k) cursor_next(p, t, &ts->cur, q, &o);
-    for (c = 0; c < t->dims; ++c) ts->v[0][c] = dequantize(t, c, q[c]);
-    ts->t[0] = frame_of(t, ts->place[0].cell, o);
-    if (i == 0) {
-        repeat_slot(ts, 1, 0);
-    } else {
-        cursor_next(p, t, &ts->cur, q, &o);
-        for (c = 0; c < t->dims; ++c) ts->v[1][c] = dequantize(t, c, q[c]);
-        ts->t[1] = frame_of(t, ts->place[1].cell, o);
+    for (s = 0; s < 4u; ++s) {
+        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
+        if (j > last) j = last;
+        ts->t[s] = ring_t[j & 3u];
+        memcpy(ts->v[s], ring_v[j & 3u], sizeof ts->v[s]);
     }
-    load_next(p, ts, 2);
-    if (i + 2u <= last)
-        load_next(p, ts, 3);
-    else
-        repeat_slot(ts, 3, 2);
     set_curve(ts);
 }
 
@@ -457,12 +402,14 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
         for (steps = 0; steps < 2 && x >= ts->t[2] && ts->i + 1u < last; ++steps) {
             memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
             memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
-            memmove(ts->place, ts->place + 1, sizeof ts->place[0] * 3u);
             ts->i++;
-            if (ts->i + 2u <= last)
-                load_next(p, ts, 3);
-            else
+            if (ts->i + 2u <= last) {
+                int32_t q[4];
+                cursor_next(p, &ts->L, &ts->cur, q);
+                store_key(ts, 3, q);
+            } else {
                 repeat_slot(ts, 3, 2);
+            }
         }
         if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
             locate(p, ts, x);
@@ -488,13 +435,12 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
         track_state* ts = &tracks[i];
         memset(ts, 0, sizeof *ts);
         track_geometry(d, H.frames, H.group_shift, at, H.size, &ts->L);
-        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 24);
-        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 32, ts->axis);
+        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
+        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
         if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
             int32_t q[4];
-            uint32_t o, c;
-            group_open(p, &ts->L, 0, &ts->cur, q, &o);
-            for (c = 0; c < ts->L.dims; ++c) ts->v[0][c] = dequantize(&ts->L, c, q[c]);
+            group_open(p, &ts->L, 0, &ts->cur, q);
+            store_key(ts, 0, q);
         }
         at = ts->L.end;
         d += desc_size(ts->L.kind);
@@ -549,80 +495,49 @@ static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tran
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Every rule of one track's mask, directory, group table and data, decoding every key. */
+/* Every rule of one track's seek table, group table and records, decoding every key. */
 static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
-    uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, tbits;
-    uint32_t w, set = 0, g, c, k, key = 0, last_frame = 0, prev_extra = 0;
-    key_place place = {NO_CELL, 0};
+    uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, b;
+    uint32_t g, c, k, key = 0, j, last_frame = 0;
     cursor cur;
-    /* Mask: no bit past the cells; the directory counts the keys before each 256 cells. */
-    for (w = 0; w < t->words; ++w) {
-        uint64_t m = mask_word(p, t, w);
-        if ((w & 3u) == 0 && mcd_rd_u32(p + t->dir + 4u * (w >> 2)) != set) return MCD_ERROR_MALFORMED;
-        if (w + 1u == t->words && (t->cells & 63u) && (m >> (t->cells & 63u))) return MCD_ERROR_MALFORMED;
-        set += mcd_popcount(m);
-    }
-    if (set + t->extras != t->keys - 1u) return MCD_ERROR_MALFORMED;
-    /* Extra keys: sorted cells that hold a key already; the list's padding is zero. */
-    for (k = 0; k < t->extras; ++k) {
-        uint32_t e = mcd_read_bits(p + t->extra, (uint64_t)k * t->extra_bits, t->extra_bits);
-        if (e >= t->cells || e < prev_extra || !cell_set(p, t, e)) return MCD_ERROR_MALFORMED;
-        prev_extra = e;
-    }
-    for (tbits = (uint64_t)t->extras * t->extra_bits; tbits < 32u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u); ++tbits)
-        if (mcd_read_bits(p + t->extra, tbits, 1)) return MCD_ERROR_MALFORMED;
-    /* The last frame is a key: the last cell is set. */
-    if (t->keys > 1u && !((mask_word(p, t, (t->cells - 1u) >> 6) >> ((t->cells - 1u) & 63u)) & 1u)) return MCD_ERROR_MALFORMED;
-    /* Group table padding. */
-    tbits = (uint64_t)t->groups * t->entry_bits;
-    for (; tbits < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++tbits)
-        if (mcd_read_bits(p + t->table, tbits, 1)) return MCD_ERROR_MALFORMED;
-    /* Every key, in order: records and outliers within the data area, groups back to back. */
+    /* Padding after the seek entries and the group entries is zero. */
+    for (b = (uint64_t)t->seeks * t->group_bits; b < 32u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u); ++b)
+        if (mcd_read_bits(p + t->seek, b, 1)) return MCD_ERROR_MALFORMED;
+    for (b = (uint64_t)t->groups * t->entry_bits; b < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++b)
+        if (mcd_read_bits(p + t->table, b, 1)) return MCD_ERROR_MALFORMED;
+    /* Every key in order: records and outliers within the data area, groups back to back. */
     for (g = 0; g < t->groups; ++g) {
-        uint64_t ebit = (uint64_t)g * t->entry_bits + t->offset_bits;
-        uint32_t n = t->keys - (g << t->group_shift), keybits = t->grid_shift;
+        uint64_t ebit = (uint64_t)g * t->entry_bits + t->offset_bits + t->frame_bits;
+        uint32_t n = t->keys - (g << t->group_shift), keybits = 0;
         int32_t q[4];
-        uint32_t o;
         if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
         if (mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits, t->offset_bits) != bit) return MCD_ERROR_MALFORMED;
-        for (c = 0; c < t->dims; ++c) {
-            uint32_t width = mcd_read_bits(p + t->table, ebit + WIDTH_BITS * c, WIDTH_BITS);
-            if (width > 30u) return MCD_ERROR_MALFORMED;
-            keybits += width;
-        }
+        for (c = 0; c <= t->dims; ++c) keybits += mcd_read_bits(p + t->table, ebit + WIDTH_BITS * c, WIDTH_BITS);
         if (bit + (uint64_t)(n - 1u) * keybits > data_bits) return MCD_ERROR_MALFORMED;
-        cur.left = 0;
-        cur.key = g << t->group_shift;
-        group_open(p, t, g, &cur, q, &o);
+        group_open(p, t, g, &cur, q);
         for (k = 0; k < n; ++k) {
-            uint32_t cell, frame;
-            (void)cell;
             if (k > 0) {
-                /* Outliers: the escape codes of this record tell how many bits it consumes. */
+                /* The record's escape codes tell how many outlier bits it consumes. */
                 uint64_t need = cur.exc;
-                uint32_t b = cur.bit + t->grid_shift;
+                uint32_t fb = cur.bit + cur.w[0];
+                if (cur.w[0] && mcd_read_bits(p + t->data, cur.bit, cur.w[0]) == ((uint32_t)1 << cur.w[0]) - 1u)
+                    need += t->frame_bits;
                 for (c = 0; c < t->dims; ++c) {
-                    if (cur.w[c] && mcd_read_signed(p + t->data, b, cur.w[c]) == -(int32_t)((uint32_t)1 << (cur.w[c] - 1u)))
-                        need += t->abits[c];
-                    b += cur.w[c];
+                    uint32_t wc = cur.w[c + 1];
+                    if (wc && mcd_read_bits(p + t->data, fb, wc) == (uint32_t)1 << (wc - 1u)) need += t->abits[c];
+                    fb += wc;
                 }
                 if (need > data_bits) return MCD_ERROR_MALFORMED;
-                cursor_next(p, t, &cur, q, &o);
+                cursor_next(p, t, &cur, q);
             }
             for (c = 0; c < t->dims; ++c) {
                 if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
-                if (!mcd_in_bounds(dequantize(t, c, q[c]))) return MCD_ERROR_MALFORMED;
+                if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
             }
-            if (key == 0) {
-                if (o != 0) return MCD_ERROR_MALFORMED; /* key 0 is frame 0 */
-            } else {
-                place = place_next(p, t, place);
-                cell = place.cell;
-                frame = 1u + (cell << t->grid_shift) + o;
-                if (frame <= last_frame || frame > frames - 1u) return MCD_ERROR_MALFORMED;
-                if (key == t->keys - 1u && frame != frames - 1u) return MCD_ERROR_MALFORMED;
-                last_frame = frame;
-            }
+            /* Frames increase from 0 to the last frame, which is the last key's. */
+            if (key == 0 ? cur.frame != 0 : (cur.frame <= last_frame || cur.frame > frames - 1u)) return MCD_ERROR_MALFORMED;
+            if (key == t->keys - 1u && cur.frame != frames - 1u) return MCD_ERROR_MALFORMED;
+            last_frame = cur.frame;
             key++;
         }
         bit = cur.exc;
@@ -631,6 +546,12 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t 
     if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
     for (; bit < data_bits; ++bit)
         if (mcd_read_bits(p + t->data, bit, 1)) return MCD_ERROR_MALFORMED;
+    /* The seek table names, for every 2^s-th frame, the last group starting at or before it. */
+    for (j = 0, g = 0; j < t->seeks; ++j) {
+        uint32_t f = j << t->seek_shift;
+        while (g + 1u < t->groups && group_frame(p, t, g + 1u) <= f) ++g;
+        if (mcd_read_bits(p + t->seek, (uint64_t)j * t->group_bits, t->group_bits) != g) return MCD_ERROR_MALFORMED;
+    }
     return MCD_OK;
 }
 
@@ -662,17 +583,14 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
                 kind = H.descs[off];
                 if (kind == 0 || (kind != kinds[m][0] && kind != kinds[m][1])) return MCD_ERROR_MALFORMED;
                 if ((size_t)(H.descs - p) + off + desc_size(kind) > H.size) return MCD_ERROR_MALFORMED;
-                if (kind == KIND_MRP || kind == KIND_TWIST) {
-                    if (mcd_rd_u16(H.descs + off + 30)) return MCD_ERROR_MALFORMED;
-                }
+                if ((kind == KIND_MRP || kind == KIND_TWIST) && mcd_rd_u16(H.descs + off + 26)) return MCD_ERROR_MALFORMED;
                 if (kind == KIND_TWIST) {
-                    const uint8_t* a = H.descs + off + 32;
+                    const uint8_t* a = H.descs + off + 28;
                     float ax = (float)(int16_t)mcd_rd_u16(a), ay = (float)(int16_t)mcd_rd_u16(a + 2);
                     float az = (float)(int16_t)mcd_rd_u16(a + 4);
                     if (mcd_rd_u16(a + 6)) return MCD_ERROR_MALFORMED;
                     if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
                 }
-                /* The geometry is checked below, once every descriptor's size is known. */
                 off += desc_size(kind);
                 track++;
             }
@@ -687,8 +605,7 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
         if (p[k]) return MCD_ERROR_MALFORMED;
     for (i = 0, off = 0; i < H.tracks; ++i) {
         track_layout t;
-        const uint8_t* d = H.descs + off;
-        r = track_geometry(d, H.frames, H.group_shift, at, H.size, &t);
+        r = track_geometry(H.descs + off, H.frames, H.group_shift, at, H.size, &t);
         if (r != MCD_OK) return r;
         if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
         r = check_track(p, &t, H.frames);

@@ -1,14 +1,12 @@
 """The ``RMAL`` version 2 payload (docs/FORMAT.md): what the runtime samples in place.
 
-A track's key times are a bit mask over the cells of its key grid (frames 1 ... F - 1 in cells
-of 1, 2, 4 or 8 frames; frame 0 is always key 0) with a rank directory every 256 cells; a cell
-holding more than one key is listed once per extra key in a sorted list (the fitter keeps
-those rare: ``curves.fit_keys``). Its key values come in groups of ``2**group_shift`` keys: a fixed-size group
-entry (bit offset of the group's records, residual widths, the first key whole) and one record
-per further key (in-cell offset, then per component a residual from a prediction at the
-group's width, or an escape code whose value follows the records whole). Widths are chosen
-per group and component for the fewest bits (a patched frame-of-reference code), the
-predictor per track.
+A track's keys come in groups of ``2**group_shift``. A fixed-size group entry holds the bit
+offset of the group's records, its first key whole (frame and value) and the widths of the
+records' fields; each further key is one record: its gap to the key before and, per component,
+its residual from a prediction, at the group's widths, or an escape code whose value follows the
+records whole. Widths are chosen per group and field for the fewest bits (a patched
+frame-of-reference code), the predictor per track. A seek table names the group of every
+``2**seek_shift``-th frame.
 """
 from __future__ import annotations
 
@@ -20,13 +18,12 @@ import numpy as np
 from ..bitpack import fields_bytes
 
 PAYLOAD_HEADER = 32
-DIR_CELLS = 256
-WIDTH_BITS = 5
-MAX_WIDTH = 30
+WIDTH_BITS = 4
+MAX_WIDTH = 15
 MAX_Q = 1 << 30
 KIND_MRP, KIND_TWIST, KIND_TRANSLATION, KIND_SCALE = 1, 2, 3, 4
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
-DESC_SIZE = {KIND_MRP: 32, KIND_TWIST: 44, KIND_TRANSLATION: 24, KIND_SCALE: 24}
+DESC_SIZE = {KIND_MRP: 28, KIND_TWIST: 40, KIND_TRANSLATION: 20, KIND_SCALE: 20}
 DEFAULT_GROUP_SHIFT = 4
 
 
@@ -78,25 +75,9 @@ def _bit_length(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _extra_bits(cells: int) -> int:
-    """Bits of a cell index in the extra-key list."""
-    return max(1, int(cells - 1).bit_length())
-
-
-def grid_shift_for(frames: np.ndarray, frame_count: int) -> int:
-    """The key grid (shift 0 ... 3) whose mask, in-cell offsets and extra-key list take the
-    fewest bits."""
-    f = np.asarray(frames, dtype=np.int64)[1:]
-    if frame_count < 2 or len(f) == 0:
-        return 0
-    best, best_bits = 0, None
-    for shift in (0, 1, 2, 3):
-        cells = ((frame_count - 2) >> shift) + 1
-        extras = int(np.sum(np.diff((f - 1) >> shift) == 0))
-        bits = cells + shift * len(frames) + extras * _extra_bits(cells)
-        if best_bits is None or bits < best_bits:
-            best, best_bits = shift, bits
-    return best
+def bits_for(n: int) -> int:
+    """Bits that hold every value 0 ... n (at least 1), as the runtime computes them."""
+    return max(1, int(n).bit_length())
 
 
 def _residuals(q: np.ndarray, group_shift: int, predictor: int) -> np.ndarray:
@@ -112,29 +93,37 @@ def _residuals(q: np.ndarray, group_shift: int, predictor: int) -> np.ndarray:
     return r
 
 
-def _group_plan(r: np.ndarray, group_shift: int, abits: np.ndarray) -> tuple[np.ndarray, int]:
-    """Per group and component the residual width with the fewest bits (records at that
-    width plus escaped outliers whole) and the total bits."""
+def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -> tuple[np.ndarray, int]:
+    """Per group the field width (0 ... 15) with the fewest bits for records whose values
+    need ``need`` bits each (escaped past the width, at ``outlier_bits`` each), and the bits."""
+    counts = np.bincount(grp, minlength=groups)
+    hist = np.zeros((groups, 33), dtype=np.int64)
+    np.add.at(hist, (grp, np.minimum(need, 32)), 1)
+    over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w]: records needing more than w
+    w = np.arange(MAX_WIDTH + 1)
+    cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * outlier_bits
+    cost[:, 0] = np.where(over[:, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
+    best = np.argmin(cost, axis=1)
+    return best, int(cost[np.arange(groups), best].sum())
+
+
+def _group_plan(r: np.ndarray, gaps: np.ndarray, group_shift: int, abits: np.ndarray,
+                frame_bits: int) -> tuple[np.ndarray, int]:
+    """Per group the widths of the gap and of each component, and the total record bits."""
     K, d = r.shape
-    G = 1 << group_shift
-    groups = (K - 1) // G + 1
-    pos = np.arange(K) & (G - 1)
-    grp = np.arange(K) >> group_shift
-    mag = np.abs(r)
-    need = np.where(mag == 0, 0, _bit_length(mag) + 1)  # width that holds r without escaping
-    widths = np.zeros((groups, d), dtype=np.int64)
-    total = 0
-    body = pos > 0
-    counts = np.bincount(grp[body], minlength=groups)  # records per group
+    groups = (K - 1 >> group_shift) + 1
+    body = (np.arange(K) & ((1 << group_shift) - 1)) > 0
+    grp = (np.arange(K) >> group_shift)[body]
+    widths = np.zeros((groups, d + 1), dtype=np.int64)
+    # A gap escapes when it needs the all-ones code or more; a residual when it is outside
+    # [-(2^(w-1) - 1), 2^(w-1) - 1].
+    g = gaps[body]
+    widths[:, 0], total = _widths(np.where(g == 0, 0, _bit_length(g + 1)), grp, groups, frame_bits)
+    mag = np.abs(r[body])
     for c in range(d):
-        hist = np.zeros((groups, 33), dtype=np.int64)
-        np.add.at(hist, (grp[body], np.minimum(need[body, c], 32)), 1)
-        over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w] = records needing more than w
-        w = np.arange(MAX_WIDTH + 1)
-        cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * abits[c]
-        cost[:, 0] = np.where(over[:, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
-        widths[:, c] = np.argmin(cost, axis=1)
-        total += int(cost[np.arange(groups), widths[:, c]].sum())
+        widths[:, c + 1], bits = _widths(np.where(mag[:, c] == 0, 0, _bit_length(mag[:, c]) + 1), grp, groups,
+                                         int(abits[c]))
+        total += bits
     return widths, total
 
 
@@ -151,71 +140,67 @@ def _track_bytes(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[byt
         raise ValueError("key frames must increase from 0 to the last frame")
     if K == 1 and frame_count != 1:
         raise ValueError("a track of a clip of several frames has at least two keys")
-    gs = grid_shift_for(frames, frame_count)
-    abits = signed_bits(q)
     G = 1 << group_shift
     groups = (K - 1) // G + 1
-    # Key times: a mask over cells, a directory every 256 cells.
-    cells = ((frame_count - 2) >> gs) + 1 if frame_count > 1 else 0
-    words = (cells + 63) // 64
-    mask = np.zeros(words * 64, dtype=np.uint8)
-    key_cell = (frames[1:] - 1) >> gs
-    offset = np.concatenate(([0], (frames[1:] - 1) & ((1 << gs) - 1)))
-    mask[key_cell] = 1
-    mask_bytes = np.packbits(mask, bitorder="little").tobytes()
-    extra_cells = key_cell[1:][np.diff(key_cell) == 0]  # a key sharing its cell with the one before
-    extra_bytes = fields_bytes(extra_cells, _extra_bits(cells)) if len(extra_cells) else b""
-    per_word = mask.reshape(-1, 64).sum(axis=1) if words else np.zeros(0, dtype=np.int64)
-    ranks = np.concatenate(([0], np.cumsum(per_word)))[: words][::4] if words else np.zeros(0, dtype=np.int64)
-    dir_bytes = np.asarray(ranks, dtype="<u4").tobytes()
-    # Values: the predictor with the fewest bits.
+    abits = signed_bits(q)
+    frame_bits = bits_for(frame_count - 1)
+    gaps = np.concatenate(([0], np.diff(frames) - 1))
     best = None
     for predictor in (0, 1, 2):
         r = _residuals(q, group_shift, predictor)
-        widths, bits = _group_plan(r, group_shift, abits)
+        widths, bits = _group_plan(r, gaps, group_shift, abits, frame_bits)
         if best is None or bits < best[0]:
             best = (bits, predictor, r, widths)
     _, predictor, r, widths = best
     pos = np.arange(K) & (G - 1)
     grp = np.arange(K) >> group_shift
     rec = np.flatnonzero(pos > 0)
-    w_rec = widths[grp[rec]]  # (R, d)
-    escaped = np.zeros((len(rec), d), dtype=bool)
-    field_vals = np.zeros((len(rec), d), dtype=np.int64)
-    for c in range(d):
+    w_rec = widths[grp[rec]]  # (R, d + 1): gap, components
+    # Fields of each record (gap, then components) and which of them escape.
+    raw = np.concatenate((gaps[rec][:, None], r[rec]), axis=1)
+    whole = np.concatenate((frames[rec][:, None], q[rec]), axis=1)
+    whole_bits = np.concatenate(([frame_bits], abits))
+    escaped = np.zeros(raw.shape, dtype=bool)
+    field_vals = np.zeros(raw.shape, dtype=np.int64)
+    one = np.int64(1)
+    wg = w_rec[:, 0]
+    escaped[:, 0] = (wg > 0) & (raw[:, 0] >= (one << wg) - 1)
+    field_vals[:, 0] = np.where(escaped[:, 0], (one << wg) - 1, raw[:, 0])
+    for c in range(1, d + 1):
         w = w_rec[:, c]
-        rc = r[rec, c]
-        lim = np.where(w > 0, (np.int64(1) << np.maximum(w - 1, 0)) - 1, 0)
-        escaped[:, c] = (np.abs(rc) > lim) & (w > 0)
-        mod = np.int64(1) << w
-        field_vals[:, c] = np.where(escaped[:, c], np.int64(1) << np.maximum(w - 1, 0), rc % mod)
-    # Records of each group, then its outliers; groups back to back.
-    rec_vals = np.concatenate((offset[rec][:, None], field_vals), axis=1)
-    rec_wids = np.concatenate((np.full((len(rec), 1), gs), w_rec), axis=1)
-    rec_bits = rec_wids.sum(axis=1)
-    exc_rows, exc_comp = np.nonzero(escaped)
-    exc_vals = q[rec[exc_rows], exc_comp] & ((np.int64(1) << abits[exc_comp]) - 1)
-    exc_wids = abits[exc_comp]
+        lim = np.where(w > 0, (one << np.maximum(w - 1, 0)) - 1, 0)
+        escaped[:, c] = (np.abs(raw[:, c]) > lim) & (w > 0)
+        field_vals[:, c] = np.where(escaped[:, c], one << np.maximum(w - 1, 0), raw[:, c] % (one << w))
+    rec_bits = w_rec.sum(axis=1)
+    exc_rows, exc_field = np.nonzero(escaped)
+    exc_wids = whole_bits[exc_field]
+    exc_vals = whole[exc_rows, exc_field] & ((one << exc_wids) - 1)
     group_bits = np.bincount(grp[rec], weights=rec_bits, minlength=groups).astype(np.int64)
     group_bits += np.bincount(grp[rec[exc_rows]], weights=exc_wids, minlength=groups).astype(np.int64)
     starts = np.concatenate(([0], np.cumsum(group_bits)[:-1]))
-    # Order fields: by group, records before outliers, in record order, then component.
+    # Order fields: by group, records before outliers, in record order, then field.
     f_group = np.concatenate((np.repeat(grp[rec], d + 1), grp[rec[exc_rows]]))
     f_part = np.concatenate((np.zeros(len(rec) * (d + 1), dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
     f_order = np.concatenate((np.arange(len(rec) * (d + 1)), np.arange(len(exc_rows))))
     order = np.lexsort((f_order, f_part, f_group))
-    data = fields_bytes(np.concatenate((rec_vals.ravel(), exc_vals))[order],
-                        np.concatenate((rec_wids.ravel(), exc_wids))[order])
-    # Group table: bit offset, widths, the first key's in-cell offset and value.
-    offset_bits = max(1, int(_bit_length(np.array([int(starts.max())]))[0]))
+    data = fields_bytes(np.concatenate((field_vals.ravel(), exc_vals))[order],
+                        np.concatenate((w_rec.ravel(), exc_wids))[order])
+    # Group table: bit offset, first key's frame, widths, first key's value.
+    offset_bits = bits_for(int(starts.max()))
     first = np.arange(groups) * G
-    e_vals = [starts[:, None], widths, offset[first][:, None], q[first] & ((np.int64(1) << abits) - 1)]
-    e_wids = [np.full((groups, 1), offset_bits), np.full((groups, d), WIDTH_BITS), np.full((groups, 1), gs),
-              np.broadcast_to(abits, (groups, d))]
+    e_vals = [starts[:, None], frames[first][:, None], widths, q[first] & ((one << abits) - 1)]
+    e_wids = [np.full((groups, 1), offset_bits), np.full((groups, 1), frame_bits),
+              np.full((groups, d + 1), WIDTH_BITS), np.broadcast_to(abits, (groups, d))]
     table = fields_bytes(np.concatenate(e_vals, axis=1).ravel(), np.concatenate(e_wids, axis=1).ravel())
-    body = mask_bytes + dir_bytes + extra_bytes + table + data
-    head = struct.pack("<BBBBIIIf", t.kind, gs | (4 if t.split else 0), predictor, offset_bits, K, len(data),
-                       len(extra_cells), t.step)
+    # Seek table: the group of every 2^s-th frame, s about two groups' span.
+    span = max(1.0, frame_count / groups)
+    seek_shift = min(24, max(0, int(np.floor(np.log2(2.0 * span)))))
+    seek_frames = np.arange(((frame_count - 1) >> seek_shift) + 1) << seek_shift
+    seek = np.searchsorted(frames[first], seek_frames, side="right") - 1
+    seek_bytes = fields_bytes(seek, bits_for(groups - 1))
+    body = seek_bytes + table + data
+    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | predictor << 1, offset_bits, seek_shift, K,
+                       len(data), t.step)
     head += bytes([int(b) for b in abits] + [0] * (4 - d))
     if t.kind in (KIND_MRP, KIND_TWIST):
         head += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)

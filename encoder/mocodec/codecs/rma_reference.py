@@ -16,12 +16,16 @@ from ..curves import catmull_rom
 from ..motion import Skeleton
 from .spline_reference import track_rotation
 
-_DESC_SIZE = {1: 32, 2: 44, 3: 24, 4: 24}
+_DESC_SIZE = {1: 28, 2: 40, 3: 20, 4: 20}
 _DIMS = {1: 3, 2: 4, 3: 3, 4: 3}
 
 
 def _signed(u: int, n: int) -> int:
     return u - (1 << n) if u >> (n - 1) else u
+
+
+def _bits_for(n: int) -> int:
+    return max(1, int(n).bit_length())
 
 
 def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
@@ -35,77 +39,75 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     pos += 4 * nconst
     descs = []
     for _ in range(ntracks):
-        kind, gs, predictor, offset_bits, K, data_bytes, extras, step = struct.unpack_from("<BBBBIIIf", payload, pos)
+        kind, flags, offset_bits, seek_shift, K, data_bytes, step = struct.unpack_from("<BBBBIIf", payload, pos)
         d = _DIMS[kind]
-        abits = list(payload[pos + 20:pos + 20 + d])
+        abits = list(payload[pos + 16:pos + 16 + d])
         steps = np.full(d, step, dtype=np.float32)
         ref = axis = None
         if kind in (1, 2):
-            ref = R.quat_from_mrp(np.frombuffer(payload, "<i2", 3, pos + 24).astype(np.float64) / 32767.0)
+            ref = R.quat_from_mrp(np.frombuffer(payload, "<i2", 3, pos + 20).astype(np.float64) / 32767.0)
         if kind == 2:
-            a = np.frombuffer(payload, "<i2", 3, pos + 32).astype(np.float64)
+            a = np.frombuffer(payload, "<i2", 3, pos + 28).astype(np.float64)
             axis = a / np.linalg.norm(a)
-            steps[0] = struct.unpack_from("<f", payload, pos + 40)[0]
-        descs.append(dict(kind=kind, d=d, gs=gs & 3, split=bool(gs & 4), extras=extras, predictor=predictor,
-                          offset_bits=offset_bits, K=K,
-                          data_bytes=data_bytes, steps=steps, abits=abits, ref=ref, axis=axis))
+            steps[0] = struct.unpack_from("<f", payload, pos + 36)[0]
+        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), predictor=flags >> 1, offset_bits=offset_bits,
+                          seek_shift=seek_shift, K=K, data_bytes=data_bytes, steps=steps, abits=abits, ref=ref,
+                          axis=axis))
         pos += _DESC_SIZE[kind]
     pos = (pos + 3) // 4 * 4
     G = 1 << gshift
+    frame_bits = _bits_for(frames - 1)
     for t in descs:
-        cells = ((frames - 2) >> t["gs"]) + 1 if frames > 1 else 0
-        words = (cells + 63) // 64
-        mask_at = pos
-        extra_at = mask_at + 8 * words + 4 * ((words + 3) // 4)
-        ebits = max(1, (cells - 1).bit_length())
-        table_at = extra_at + 4 * ((t["extras"] * ebits + 31) // 32)
-        groups = (t["K"] - 1) // G + 1
         d = t["d"]
-        entry = t["offset_bits"] + 5 * d + t["gs"] + sum(t["abits"])
+        groups = (t["K"] - 1) // G + 1
+        seeks = ((frames - 1) >> t["seek_shift"]) + 1
+        table_at = pos + 4 * ((seeks * _bits_for(groups - 1) + 31) // 32)
+        entry = t["offset_bits"] + frame_bits + 4 * (d + 1) + sum(t["abits"])
         data_at = table_at + 4 * ((groups * entry + 31) // 32)
         pos = data_at + t["data_bytes"]
-        table = payload[table_at:data_at]
+        table = payload[table_at:data_at] + bytes(8)
         data = payload[data_at:pos] + bytes(8)
-        set_cells = [c for c in range(cells) if payload[mask_at + c // 8] >> (c % 8) & 1]
-        extra = [read_bits(payload[extra_at:table_at] + bytes(8), k * ebits, ebits) for k in range(t["extras"])]
-        set_cells = sorted(set_cells + extra)  # a cell holding n keys appears n times
         q = np.zeros((t["K"], d), dtype=np.int64)
-        offs = np.zeros(t["K"], dtype=np.int64)
+        key_frames = np.zeros(t["K"], dtype=np.int64)
         for g in range(groups):
             bit = g * entry
-            start = read_bits(table, bit, t["offset_bits"])
+            rec = read_bits(table, bit, t["offset_bits"])
             bit += t["offset_bits"]
-            w = [read_bits(table, bit + 5 * c, 5) for c in range(d)]
-            bit += 5 * d
             k0 = g * G
-            offs[k0] = read_bits(table, bit, t["gs"])
-            bit += t["gs"]
+            key_frames[k0] = read_bits(table, bit, frame_bits)
+            bit += frame_bits
+            w = [read_bits(table, bit + 4 * c, 4) for c in range(d + 1)]
+            bit += 4 * (d + 1)
             for c in range(d):
                 q[k0, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
                 bit += t["abits"][c]
             n = min(G, t["K"] - k0)
-            rec = start
-            exc = start + (n - 1) * (t["gs"] + sum(w))
+            exc = rec + (n - 1) * sum(w)
             for j in range(1, n):
                 k = k0 + j
-                offs[k] = read_bits(data, rec, t["gs"])
-                rec += t["gs"]
+                gap = read_bits(data, rec, w[0])
+                rec += w[0]
+                if w[0] and gap == (1 << w[0]) - 1:
+                    key_frames[k] = read_bits(data, exc, frame_bits)
+                    exc += frame_bits
+                else:
+                    key_frames[k] = key_frames[k - 1] + gap + 1
                 for c in range(d):
                     q1 = q[k - 1, c]
                     q2 = q[k - 2, c] if j >= 2 else q1
                     pred = q1 + ((q1 - q2) * t["predictor"] + 1) // 2
-                    if w[c] == 0:
+                    wc = w[c + 1]
+                    if wc == 0:
                         q[k, c] = pred
                         continue
-                    r = _signed(read_bits(data, rec, w[c]), w[c])
-                    rec += w[c]
-                    if r == -(1 << (w[c] - 1)):
+                    r = _signed(read_bits(data, rec, wc), wc)
+                    rec += wc
+                    if r == -(1 << (wc - 1)):
                         q[k, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
                         exc += t["abits"][c]
                     else:
                         q[k, c] = pred + r
-        key_frames = np.concatenate(([0], 1 + (np.asarray(set_cells, dtype=np.int64) << t["gs"]) + offs[1:]))
-        t.update(frames=key_frames[: t["K"]], q=q)
+        t.update(frames=key_frames, q=q)
     header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts, group_shift=gshift)
     return header, descs
 
