@@ -38,7 +38,7 @@ from ..rma import repeats as RP
 from ..rma import segment as S
 from ..tolerance import Tolerance
 from . import CheckFn, CodecOutput, ProgressFn
-from .rma import curve_track
+from .rma import curve_track, frame0_jumps
 from .rma_bitstream import DEFAULT_GROUP_SHIFT
 from .rma_bitstream import payload as rmal_payload
 from .rma_reference import decode_payload
@@ -240,9 +240,10 @@ def project(basis: GroupBasis, rows: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------ curves
-def _curve_track(values: np.ndarray, budget: float, quant_fraction: float, grid: int) -> Track:
+def _curve_track(values: np.ndarray, budget: float, quant_fraction: float, grid: int, split: bool = False) -> Track:
     """One scalar (or 3-vector) curve as an ``rma`` translation track within ``budget`` on
-    every frame (max abs deviation per component)."""
+    every frame (max abs deviation per component); ``split``: its first segment detached (the
+    capture jumps from frame 0 to frame 1, as CMU's added T-pose does)."""
     values = np.asarray(values, dtype=np.float64)
     if values.ndim == 1:
         values = np.stack((values, np.zeros_like(values), np.zeros_like(values)), axis=1)
@@ -252,12 +253,13 @@ def _curve_track(values: np.ndarray, budget: float, quant_fraction: float, grid:
     # Keep |q| well inside the lattice: a very small budget on a long root path is legal input.
     step = np.maximum(step, reach / (StepQuantizer.MAX_Q / 4))
     q = StepQuantizer.for_range(-reach, reach, step.max() * np.ones(3))
-    mandatory = np.unique([0, frames - 1])
+    split = split and frames >= 3
+    mandatory = np.unique([0, 1, frames - 1] if split else [0, frames - 1])
     keys, kv, _ = fit_keys(values, np.full(frames, budget * 1.0000001),
                            lambda r: np.max(np.abs(r - values), axis=1), mandatory, q.roundtrip,
-                           grid=grid if frames > 4 * grid else 1)
+                           grid=grid if frames > 4 * grid else 1, split=split)
     t = Track(node=0, kind=KIND_TRANSLATION, values=values, target=values,
-              ref=np.zeros(4), axis=np.zeros(3))
+              ref=np.zeros(4), axis=np.zeros(3), split=split)
     t.keys, t.key_values, t.quantizer = keys, kv, q
     return t
 
@@ -278,7 +280,8 @@ def curve_set(tracks: list[Track | None], frames: int, group_shift: int) -> byte
     return rmal_payload(frames, modes, [], [curve_track(t) for t in tracks if t is not None], group_shift)
 
 
-def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first: list[Track] | None = None) -> bytes:
+def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first: list[Track] | None = None,
+                    split: bool = False) -> bytes:
     """The curve set of coefficients (F, k) within ``budget`` each, after the tracks ``first``
     (a repeated piece's reference curve); a group without components has one resting node."""
     frames = len(coef)
@@ -286,14 +289,14 @@ def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first:
     if coef.shape[1] == 0:
         tracks.append(None)
     else:
-        tracks += [_curve_track(c, budget, s.quant_fraction, s.key_grid) for c in pack_coefficients(coef)]
+        tracks += [_curve_track(c, budget, s.quant_fraction, s.key_grid, split) for c in pack_coefficients(coef)]
     return curve_set(tracks, frames, s.group_shift)
 
 
 def track_curve(t: Track) -> np.ndarray:
     """What the decoder evaluates for a fitted track's first component, on every frame."""
     x = np.arange(len(t.values), dtype=np.float64)
-    return catmull_rom(t.keys, t.quantizer.roundtrip(t.key_values), x)[:, 0]
+    return catmull_rom(t.keys, t.quantizer.roundtrip(t.key_values), x, split=t.split)[:, 0]
 
 
 def set_coefficients(payload: bytes, k: int, x: np.ndarray, first: int = 0) -> np.ndarray:
@@ -486,6 +489,8 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
         bases.append(group_basis(rows, s.variance))
     plan = repetition_plan(pieces, flats, bases, min(frame_times), cm, s, blend)
     budget = s.coef_cm / cm
+    # Curves through a capture's jump from frame 0 to 1 (CMU's T-pose) detach that segment.
+    jumps = [frame0_jumps(m, cm) for m in motions]
     # Direct sub-pieces first (a repeated one needs its primary's coded curves), then the
     # repeated ones; the sets are laid out per clip afterwards.
     sets: dict[int, bytes] = {}
@@ -501,10 +506,11 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
             lo = sp.start - blend if pos else 0
             hi = sp.stop + blend if pos + 1 < len(mine) else sp.stop
             spans[idx] = (lo, hi)
+            split = jumps[sp.clip] and lo == 0
             b = bases[sp.group]
             coef = project(b, flats[sp.clip][lo:hi + 1])
             if direct:
-                sets[idx] = coefficient_set(coef, budget, s)
+                sets[idx] = coefficient_set(coef, budget, s, split=split)
                 continue
             # Eq. 6: a reference curve into the primary's curve set (its frames, extended by one
             # frame per frame past the interval) and the differences to the primary as the
@@ -515,10 +521,10 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
             ref += np.where(x < sp.start, x - sp.start, 0.0) + np.where(x > sp.start + len(sp.ref) - 1,
                                                                          x - (sp.start + len(sp.ref) - 1), 0.0)
             ref = np.clip(ref, 0.0, phi - plo)
-            ref_track = _curve_track(ref, s.ref_frames, s.quant_fraction, s.key_grid)
+            ref_track = _curve_track(ref, s.ref_frames, s.quant_fraction, s.key_grid, split)
             at = np.clip(track_curve(ref_track), 0.0, phi - plo)
             diff = coef - set_coefficients(sets[sp.primary], b.k, at)
-            sets[idx] = coefficient_set(diff, budget, s, first=[ref_track])
+            sets[idx] = coefficient_set(diff, budget, s, first=[ref_track], split=split)
     # A primary's curve set is shared (in the section's prefix): its own clip and every clip
     # that repeats it read it there. Every other set lies in its clip's payload.
     primaries = sorted({sp.primary for sp in plan if sp.primary >= 0})
@@ -526,7 +532,7 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
     clip_payloads, stats = [], []
     for ci, (m, pr) in enumerate(zip(motions, prepared)):
         rc, rb = root_curves(pr.root, cm, s)
-        own = [curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid) for c, bud in zip(rc, rb)],
+        own = [curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid, jumps[ci]) for c, bud in zip(rc, rb)],
                          m.frame_count, s.group_shift)]
         mine = [j for j, q in enumerate(plan) if q.clip == ci]
         at = CLIP_HEADER + PIECE_RECORD * len(mine) + len(own[0])
