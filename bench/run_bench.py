@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
             **{k: result.size.as_dict()[k] for k in ("ratio_bvh", "ratio_acl", "bytes_per_second",
                                                       "raw_bvh_bytes", "raw_acl_bytes", "seconds")},
             **err, **effector_split(motions, result.clips), "encode_seconds": seconds, **{k: v for k, v in sp.items() if k.startswith("us_")},
-            "resident_bytes": sp["resident_bytes"], "scratch_bytes": sp["scratch_bytes"],
+            "scratch_bytes": sp["scratch_bytes"],
         }
         if whole_dev_set:
             row["acl_bytes_at_same_max_error"] = acl.bytes_at_error(err["max_cm"])
@@ -162,7 +162,7 @@ def markdown(report: dict) -> str:
     pca = any(r.get("pca_variance") for r in report["rows"])
     head = ["PCA variance (components per group)" if pca else "tolerance cm", "bytes", "B/s", "ratio BVH f32", "ratio ACL 40B", "max cm", "p99 cm",
             "mean cm", "effector / inner mean cm", "encode s", "µs/pose seq", "µs/pose random",
-            "µs world seq", "resident B"]
+            "µs world seq", "scratch B"]
     if acl:
         head += ["ACL bytes at same max err", "ours / ACL"]
     eff = report.get("effector_tolerance_cm")
@@ -178,7 +178,7 @@ def markdown(report: dict) -> str:
                  f"{r['effector_mean_cm']:.3f} / {r['inner_mean_cm']:.3f}" if "effector_mean_cm" in r else "—",
                  f"{r['encode_seconds']:.0f}",
                  f"{r['us_per_pose_local_sequential']:.2f}", f"{r['us_per_pose_local_random']:.2f}",
-                 f"{r['us_per_pose_world_sequential']:.2f}", f"{r['resident_bytes']:,}"]
+                 f"{r['us_per_pose_world_sequential']:.2f}", f"{r['scratch_bytes']:,}"]
         if acl:
             cells += [f"{r['acl_bytes_at_same_max_error']:,.0f}", f"{r['size_vs_acl']:.3f}"]
         lines.append("| " + " | ".join(cells) + " |")

@@ -36,8 +36,7 @@ int main(int argc, char** argv) {
     long size;
     unsigned char* data;
     mcd_asset asset;
-    void *scratch, *resident = NULL;
-    size_t rsize = 0;
+    void* scratch;
     int runs = argc > 2 ? atoi(argv[2]) : 15, mode;
     uint32_t c, flags_list[2] = {0, MCD_SAMPLE_WORLD};
     mcd_transform pose[1024];
@@ -52,9 +51,7 @@ int main(int argc, char** argv) {
     data = (unsigned char*)malloc((size_t)size);
     if (!data || fread(data, 1, (size_t)size, f) != (size_t)size) { fprintf(stderr, "read failed\n"); return 1; }
     fclose(f);
-    if (mcd_resident_size(data, (size_t)size, 0, &rsize) != MCD_OK) { fprintf(stderr, "invalid asset\n"); return 1; }
-    if (rsize && posix_memalign(&resident, 16, rsize) != 0) return 1;
-    if (mcd_open(data, (size_t)size, 0, resident, rsize, &asset) != MCD_OK) { fprintf(stderr, "open failed\n"); return 1; }
+    if (mcd_open(data, (size_t)size, 0, &asset) != MCD_OK) { fprintf(stderr, "open failed\n"); return 1; }
     if (posix_memalign(&scratch, 16, mcd_scratch_size(&asset) + 16) != 0) return 1;
     mcd_scratch_init(&asset, scratch, mcd_scratch_size(&asset));
     for (c = 0; c < mcd_clip_count(&asset); ++c) {
@@ -91,14 +88,13 @@ int main(int argc, char** argv) {
             free(per);
         }
     }
-    printf("{\"asset_bytes\": %ld, \"resident_bytes\": %lu, \"scratch_bytes\": %lu, \"clips\": %u, "
+    printf("{\"asset_bytes\": %ld, \"scratch_bytes\": %lu, \"clips\": %u, "
            "\"frames\": %.0f, \"runs\": %d, "
            "\"us_per_pose_local_sequential\": %.4f, \"us_per_pose_local_random\": %.4f, "
            "\"us_per_pose_world_sequential\": %.4f, \"us_per_pose_world_random\": %.4f}\n",
-           size, (unsigned long)rsize, (unsigned long)mcd_scratch_size(&asset), mcd_clip_count(&asset),
+           size, (unsigned long)mcd_scratch_size(&asset), mcd_clip_count(&asset),
            total_frames, runs, medians[0][0], medians[0][1], medians[1][0], medians[1][1]);
     free(scratch);
-    free(resident);
     free(data);
     return 0;
 }
