@@ -2,13 +2,13 @@
  * asset's bytes (docs/FORMAT.md, RMAL version 2).
  *
  * A track's keys come in groups of G. A fixed-size group entry gives the bit offset of the
- * group's records, the first key whole (frame and value) and the widths of the records'
- * fields; each further key is one record: its gap to the key before and, per component, its
- * residual from a prediction, at the group's widths, outliers stored whole after the records.
- * A seek table names the group at every 2^s-th frame. Random access finds the group by the
- * seek table and a step or two, then decodes at most G records; sequential playback keeps
- * each track's four keys and a decoding cursor in the scratch and decodes one record per key
- * interval. */
+ * group's data, its first key's frame, the widths of its fields and, per component, the
+ * group's smallest value; the data holds the gaps between the group's keys, then each key's
+ * value relative to the group's smallest at the group's widths (so any key's value is one read),
+ * then the gaps too wide for their field, whole. A seek table names the group of every 2^s-th
+ * frame. A random access finds the group by the seek table and a step or two, sums at most G
+ * small gap fields and reads the four keys it needs; sequential playback keeps each track's
+ * four keys and a cursor in the scratch and reads one gap and one value per key interval. */
 #include <string.h>
 
 #include "internal.h"
@@ -17,8 +17,9 @@
 #define PAYLOAD_HEADER 32u
 #define MAX_GROUP_SHIFT 6u
 #define MAX_SEEK_SHIFT 24u
-#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
-#define WIDTH_BITS 4u       /* a field width, 0 ... 15 */
+#define GAP_WIDTH_BITS 4u   /* a gap field's width, 0 ... 15 */
+#define VALUE_WIDTH_BITS 5u /* a value field's width, 0 ... 30 */
+#define MAX_VALUE_WIDTH 30u
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
@@ -40,14 +41,14 @@ static uint32_t bits_for(uint32_t n) {
 
 /* ---------------------------------------------------------------- payload layout */
 typedef struct header {
-    uint32_t size, frames, nodes, tracks, constants, group_shift;
+    uint32_t size, frames, nodes, tracks, constants;
     const uint8_t *modes, *consts, *descs;
 } header;
 
 /* Everything about one track that its descriptor and the clip's frame count give. Offsets
  * are bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, split, predictor, offset_bits, seek_shift, group_shift, frame_bits;
+    uint8_t kind, dims, split, offset_bits, seek_shift, group_shift, frame_bits;
     uint8_t group_bits, abits[4];
     uint32_t keys, groups, seeks, entry_bits, data_bytes;
     float step[4];
@@ -62,11 +63,9 @@ static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
     H->nodes = mcd_rd_u32(p + 8);
     H->tracks = mcd_rd_u32(p + 12);
     H->constants = mcd_rd_u32(p + 16);
-    H->group_shift = p[20];
     if (H->size < PAYLOAD_HEADER || H->size > avail || (H->size & 3u)) return MCD_ERROR_MALFORMED;
-    if (p[21] || p[22] || p[23] || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
+    if (mcd_rd_u32(p + 20) || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
     if (H->frames == 0 || H->nodes == 0 || H->nodes > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (H->group_shift < 1 || H->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
     if (H->tracks > 3u * H->nodes || H->constants > 10u * H->nodes) return MCD_ERROR_MALFORMED;
     if ((uint64_t)PAYLOAD_HEADER + mcd_align4(H->nodes) + 4u * (uint64_t)H->constants > H->size) return MCD_ERROR_MALFORMED;
     H->modes = p + PAYLOAD_HEADER;
@@ -79,32 +78,31 @@ static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
 
 /* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`;
  * checks what the descriptor alone shows and that the parts fit before `limit`. */
-static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t group_shift, uint32_t at,
-                                 uint32_t limit, track_layout* t) {
+static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit, track_layout* t) {
     uint32_t c;
     uint64_t end, entry;
     t->kind = d[0];
     if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
     t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the first segment detached (bit 0), the predictor (bits 1-2). */
+    /* Byte 1: the first segment detached (bit 0); groups of 2^(bits 1-3) keys. */
     t->split = d[1] & 1u;
-    t->predictor = (d[1] >> 1) & 3u;
+    t->group_shift = (d[1] >> 1) & 7u;
     t->offset_bits = d[2];
     t->seek_shift = d[3];
-    t->group_shift = (uint8_t)group_shift;
     t->keys = mcd_rd_u32(d + 4);
     t->data_bytes = mcd_rd_u32(d + 8);
-    if ((d[1] >> 3) || t->predictor > 2 || t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
+    if ((d[1] >> 4) || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    if (t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
     if (t->seek_shift > MAX_SEEK_SHIFT) return MCD_ERROR_MALFORMED;
     if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
     if (t->data_bytes & 3u) return MCD_ERROR_MALFORMED;
     t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 12);
     if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 36);
     t->frame_bits = (uint8_t)bits_for(frames - 1u);
-    t->groups = ((t->keys - 1u) >> group_shift) + 1u;
+    t->groups = ((t->keys - 1u) >> t->group_shift) + 1u;
     t->group_bits = (uint8_t)bits_for(t->groups - 1u);
     t->seeks = ((frames - 1u) >> t->seek_shift) + 1u;
-    entry = t->offset_bits + (uint64_t)t->frame_bits + WIDTH_BITS * (1u + (uint64_t)t->dims);
+    entry = t->offset_bits + (uint64_t)t->frame_bits + GAP_WIDTH_BITS + VALUE_WIDTH_BITS * (uint64_t)t->dims;
     for (c = 0; c < 4; ++c) {
         t->abits[c] = d[16 + c];
         if (c < t->dims) {
@@ -130,134 +128,65 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t gro
 }
 
 /* ---------------------------------------------------------------- key decoding */
-/* Decodes a track's keys in index order from a group's first key on. */
-typedef struct cursor {
-    uint32_t key;        /* index of the key the next call decodes */
-    uint32_t left;       /* records left in the current group */
-    uint32_t bit;        /* bit position (in the data area) of the next record */
-    uint32_t exc;        /* bit position of the current group's next outlier */
-    uint32_t frame;      /* frame of the last decoded key */
-    uint32_t keybits;    /* bits of one record in the current group */
-    uint8_t w[5];        /* field widths of the current group: gap, then the components */
+/* One group's entry, unpacked: where its parts lie and how wide its fields are. */
+typedef struct group {
+    uint32_t index, first, count; /* group number, index of its first key, keys in it */
+    uint32_t frame;               /* its first key's frame */
+    uint32_t gaps, values, outliers; /* bit positions (in the data area) of its three parts */
+    uint32_t value_bits;          /* bits of one key's values */
+    uint8_t gap_width, width[4];
     uint8_t pad[3];
-    int32_t q[4], q2[4]; /* the last two decoded values, for the prediction */
-} cursor;
+    int32_t base[4];              /* per component, the group's smallest value */
+} group;
 
-/* floor(v / 2) for any sign (C's division truncates; a right shift of a negative number is
- * implementation-defined): the logical shift with the sign bit put back. */
-static int64_t floor_half(int64_t v) {
-    uint64_t u = (uint64_t)v >> 1;
-    return (int64_t)(v < 0 ? u | ((uint64_t)1 << 63) : u);
+static void group_read(const uint8_t* p, const track_layout* t, uint32_t g, group* G) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)g * t->entry_bits;
+    uint32_t c, size = 1u << t->group_shift;
+    G->index = g;
+    G->first = g << t->group_shift;
+    G->count = t->keys - G->first < size ? t->keys - G->first : size;
+    G->gaps = mcd_read_bits(table, bit, t->offset_bits);
+    bit += t->offset_bits;
+    G->frame = mcd_read_bits(table, bit, t->frame_bits);
+    bit += t->frame_bits;
+    G->gap_width = (uint8_t)mcd_read_bits(table, bit, GAP_WIDTH_BITS);
+    bit += GAP_WIDTH_BITS;
+    G->value_bits = 0;
+    for (c = 0; c < t->dims; ++c) {
+        G->width[c] = (uint8_t)mcd_read_bits(table, bit, VALUE_WIDTH_BITS);
+        G->value_bits += G->width[c];
+        bit += VALUE_WIDTH_BITS;
+    }
+    for (c = 0; c < t->dims; ++c) {
+        G->base[c] = mcd_read_signed(table, bit, t->abits[c]);
+        bit += t->abits[c];
+    }
+    G->values = G->gaps + (G->count - 1u) * G->gap_width;
+    G->outliers = G->values + G->count * G->value_bits;
 }
 
-static const uint8_t* entry_of(const uint8_t* p, const track_layout* t) {
-    return p + t->table;
+/* Key `pos` of a group: its lattice integers (q = base + the field). */
+static void group_value(const uint8_t* p, const track_layout* t, const group* G, uint32_t pos, int32_t q[4]) {
+    const uint8_t* data = p + t->data;
+    uint32_t c, bit = G->values + pos * G->value_bits;
+    if (G->value_bits <= 57u) {
+        uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
+        for (c = 0; c < t->dims; ++c) {
+            q[c] = (int32_t)((int64_t)G->base[c] + (int64_t)(w & (((uint64_t)1 << G->width[c]) - 1u)));
+            w >>= G->width[c];
+        }
+    } else {
+        for (c = 0; c < t->dims; ++c) {
+            q[c] = (int32_t)((int64_t)G->base[c] + (int64_t)mcd_read_bits(data, bit, G->width[c]));
+            bit += G->width[c];
+        }
+    }
 }
 
 /* The first key's frame of group g. */
 static uint32_t group_frame(const uint8_t* p, const track_layout* t, uint32_t g) {
-    return mcd_read_bits(entry_of(p, t), (uint64_t)g * t->entry_bits + t->offset_bits, t->frame_bits);
-}
-
-/* Enter group g: its entry gives the record layout and the first key (value into q). */
-static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4]) {
-    const uint8_t* table = entry_of(p, t);
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t c, n, first = g << t->group_shift;
-    cur->bit = mcd_read_bits(table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    cur->frame = mcd_read_bits(table, bit, t->frame_bits);
-    bit += t->frame_bits;
-    cur->keybits = 0;
-    for (c = 0; c <= t->dims; ++c) {
-        cur->w[c] = (uint8_t)mcd_read_bits(table, bit, WIDTH_BITS);
-        cur->keybits += cur->w[c];
-        bit += WIDTH_BITS;
-    }
-    for (c = 0; c < t->dims; ++c) {
-        q[c] = cur->q[c] = cur->q2[c] = mcd_read_signed(table, bit, t->abits[c]);
-        bit += t->abits[c];
-    }
-    n = t->keys - first < (1u << t->group_shift) ? t->keys - first : 1u << t->group_shift;
-    cur->left = n - 1u;
-    cur->exc = cur->bit + cur->left * cur->keybits;
-    cur->key = first + 1u;
-}
-
-/* Decode the key the cursor points at: its value into q, its frame into cur->frame. */
-static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4]) {
-    const uint8_t* data = p + t->data;
-    uint64_t w;
-    uint32_t c, shift, wg;
-    if (cur->left == 0) {
-        group_open(p, t, cur->key >> t->group_shift, cur, q);
-        return;
-    }
-    /* One load holds the whole record unless its widths add up past 57 bits. */
-    w = mcd_rd_u64(data + (cur->bit >> 3)) >> (cur->bit & 7u);
-    wg = cur->w[0];
-    if (cur->keybits > 57u) {
-        /* Rare wide records: field by field. */
-        uint32_t b = cur->bit;
-        uint32_t gap = mcd_read_bits(data, b, wg);
-        b += wg;
-        if (wg && gap == ((uint32_t)1 << wg) - 1u) {
-            cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
-            cur->exc += t->frame_bits;
-        } else {
-            cur->frame += gap + 1u;
-        }
-        for (c = 0; c < t->dims; ++c) {
-            uint32_t wc = cur->w[c + 1];
-            int64_t v = cur->q[c] + floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
-            if (wc) {
-                int32_t r = mcd_read_signed(data, b, wc);
-                b += wc;
-                if (r == -(int32_t)((uint32_t)1 << (wc - 1u))) {
-                    v = mcd_read_signed(data, cur->exc, t->abits[c]);
-                    cur->exc += t->abits[c];
-                } else {
-                    v += r;
-                }
-            }
-            if (v > MAX_Q) v = MAX_Q;
-            if (v < -MAX_Q) v = -MAX_Q;
-            cur->q2[c] = cur->q[c];
-            q[c] = cur->q[c] = (int32_t)v;
-        }
-    } else {
-        uint32_t gap = (uint32_t)(w & (((uint64_t)1 << wg) - 1u));
-        if (wg && gap == ((uint32_t)1 << wg) - 1u) { /* an outlier gap: the frame whole */
-            cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
-            cur->exc += t->frame_bits;
-        } else {
-            cur->frame += gap + 1u;
-        }
-        shift = wg;
-        for (c = 0; c < t->dims; ++c) {
-            uint32_t wc = cur->w[c + 1];
-            int64_t v = cur->q[c];
-            if (t->predictor) v += floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
-            if (wc) {
-                uint32_t u = (uint32_t)((w >> shift) & (((uint64_t)1 << wc) - 1u)), sign = (uint32_t)1 << (wc - 1u);
-                shift += wc;
-                if (u == sign) { /* the escape code: an outlier, stored whole */
-                    v = mcd_read_signed(data, cur->exc, t->abits[c]);
-                    cur->exc += t->abits[c];
-                } else {
-                    v += (int64_t)(u ^ sign) - (int64_t)sign;
-                }
-            }
-            /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-            if (v > MAX_Q) v = MAX_Q;
-            if (v < -MAX_Q) v = -MAX_Q;
-            cur->q2[c] = cur->q[c];
-            q[c] = cur->q[c] = (int32_t)v;
-        }
-    }
-    cur->bit += cur->keybits;
-    cur->left--;
-    cur->key++;
+    return mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits + t->offset_bits, t->frame_bits);
 }
 
 /* The group holding the last key at or before frame xi: the seek table's group, then the
@@ -269,8 +198,56 @@ static uint32_t find_group(const uint8_t* p, const track_layout* t, uint32_t xi)
 }
 
 /* ---------------------------------------------------------------- sampling state */
+/* Reads a track's keys in order: the group of the last key read, its position, its frame, and
+ * where the next gap and the next outlier frame lie. */
+typedef struct cursor {
+    group G;
+    uint32_t pos, frame, gap_bit, exc_bit;
+} cursor;
+
+/* The cursor at key `pos` of group g (its gaps summed from the group's first key). */
+static void cursor_seek(const uint8_t* p, const track_layout* t, uint32_t g, uint32_t pos, cursor* cur) {
+    const uint8_t* data = p + t->data;
+    uint32_t w, escape, j;
+    group_read(p, t, g, &cur->G);
+    w = cur->G.gap_width;
+    escape = ((uint32_t)1 << w) - 1u;
+    cur->frame = cur->G.frame;
+    cur->gap_bit = cur->G.gaps;
+    cur->exc_bit = cur->G.outliers;
+    for (j = 0; j < pos; ++j) {
+        uint32_t gap = mcd_read_bits(data, cur->gap_bit, w);
+        cur->gap_bit += w;
+        if (w && gap == escape) {
+            cur->frame = mcd_read_bits(data, cur->exc_bit, t->frame_bits);
+            cur->exc_bit += t->frame_bits;
+        } else {
+            cur->frame += gap + 1u;
+        }
+    }
+    cur->pos = pos;
+}
+
+/* Move the cursor to the next key (which exists). */
+static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur) {
+    uint32_t w = cur->G.gap_width, gap;
+    if (cur->pos + 1u == cur->G.count) {
+        cursor_seek(p, t, cur->G.index + 1u, 0, cur);
+        return;
+    }
+    gap = mcd_read_bits(p + t->data, cur->gap_bit, w);
+    cur->gap_bit += w;
+    if (w && gap == ((uint32_t)1 << w) - 1u) {
+        cur->frame = mcd_read_bits(p + t->data, cur->exc_bit, t->frame_bits);
+        cur->exc_bit += t->frame_bits;
+    } else {
+        cur->frame += gap + 1u;
+    }
+    cur->pos++;
+}
+
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
- * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 3. */
+ * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 2. */
 typedef struct track_state {
     track_layout L;
     mcd_quat ref;
@@ -281,7 +258,7 @@ typedef struct track_state {
     float v[4][4]; /* their values */
     float t1, t2, inv_h;
     float coef[4][4];
-    cursor cur;    /* decodes key i + 3 next (when it exists) */
+    cursor cur;    /* at key min(i + 2, last) */
 } track_state;
 
 typedef struct node_plan {
@@ -300,17 +277,14 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-/* Window slot `slot` from a decoded key. */
-static void store_key(track_state* ts, uint32_t slot, const int32_t q[4]) {
+/* Window slot `slot` from key `pos` of group G at `frame`. */
+static void store_key(const uint8_t* p, track_state* ts, uint32_t slot, const group* G, uint32_t pos, uint32_t frame) {
+    int32_t q[4];
     uint32_t c;
-    ts->t[slot] = (float)ts->cur.frame;
+    group_value(p, &ts->L, G, pos, q);
+    ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
     for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
-}
-
-static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
-    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
-    ts->t[to] = ts->t[from];
 }
 
 static void set_curve(track_state* ts) {
@@ -334,56 +308,76 @@ static void set_curve(track_state* ts) {
     ts->valid = 1;
 }
 
-/* Random access: the segment holding frame position x, its four keys decoded afresh. */
+/* Move the cursor forward within its group to the last key at or before frame xi (the group
+ * holds it: the next group starts after xi). `before`: the frame of the key before. */
+static void walk_to(const uint8_t* p, const track_layout* t, cursor* cur, uint32_t xi, uint32_t* before) {
+    const uint8_t* data = p + t->data;
+    uint32_t w = cur->G.gap_width, escape = ((uint32_t)1 << w) - 1u, n = cur->G.count;
+    uint32_t pos = cur->pos, frame = cur->frame, bit = cur->gap_bit, exc = cur->exc_bit, prev = frame;
+    while (pos + 1u < n) {
+        uint32_t gap = mcd_read_bits(data, bit, w), next, wide = w && gap == escape;
+        next = wide ? mcd_read_bits(data, exc, t->frame_bits) : frame + gap + 1u;
+        if (next > xi) break;
+        if (wide) exc += t->frame_bits;
+        bit += w;
+        prev = frame;
+        frame = next;
+        ++pos;
+    }
+    cur->pos = pos;
+    cur->frame = frame;
+    cur->gap_bit = bit;
+    cur->exc_bit = exc;
+    *before = prev;
+}
+
+/* Random access: the segment holding frame position x, its four keys read afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, g, k, i, s;
-    int32_t q[4];
-    float ring_t[4], ring_v[4][4]; /* the last four decoded keys, key k at k & 3 */
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, before;
     cursor* cur = &ts->cur;
-    g = find_group(p, t, xi);
-    /* Key i - 1 lies in group g - 1 when key i is g's first: x before g's second key, or g's
-     * second key the last (whose segment is the one before it). */
-    if (g > 0) {
-        cursor peek;
-        int32_t tmp[4];
-        group_open(p, t, g, &peek, tmp);
-        if (peek.left == 0) {
-            --g;
-        } else {
-            cursor_next(p, t, &peek, tmp);
-            if (peek.frame > xi || peek.key - 1u == last) --g;
+    /* Walk the gaps from the first key of x's group to i, the last key at or before x (the
+     * key before the last at the clip's end); values are read only for the four keys. */
+    cursor_seek(p, t, find_group(p, t, xi), 0, cur);
+    walk_to(p, t, cur, xi, &before);
+    i = cur->G.first + cur->pos;
+    if (i >= last) { /* x at the last frame: the segment before it, keys read afresh (rare) */
+        uint32_t slot;
+        i = last - 1u;
+        for (slot = 0; slot < 3u; ++slot) {
+            uint32_t key = i + slot < 1u ? 0u : i + slot - 1u;
+            cursor_seek(p, t, key >> t->group_shift, key & ((1u << t->group_shift) - 1u), cur);
+            store_key(p, ts, slot, &cur->G, cur->pos, cur->frame);
         }
+        memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
+        ts->t[3] = ts->t[2];
+        ts->i = i;
+        set_curve(ts);
+        return;
     }
-    /* Decode on from group g's first key to the first key after x, then to key i + 2. */
-    group_open(p, t, g, cur, q);
-    k = g << t->group_shift;
-    store_key(ts, 0, q);
-    ring_t[k & 3u] = ts->t[0];
-    memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
-    while (k < last && ring_t[k & 3u] <= (float)xi) {
-        cursor_next(p, t, cur, q);
-        ++k;
-        store_key(ts, 0, q);
-        ring_t[k & 3u] = ts->t[0];
-        memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
+    store_key(p, ts, 1, &cur->G, cur->pos, cur->frame);
+    /* Slot 0: key i - 1: the walk passed it within the group, or it ends the group before. */
+    if (i == 0) {
+        memcpy(ts->v[0], ts->v[1], sizeof ts->v[0]);
+        ts->t[0] = ts->t[1];
+    } else if (cur->pos > 0) {
+        store_key(p, ts, 0, &cur->G, cur->pos - 1u, before);
+    } else {
+        cursor prev;
+        cursor_seek(p, t, cur->G.index - 1u, (1u << t->group_shift) - 1u, &prev);
+        store_key(p, ts, 0, &prev.G, prev.pos, prev.frame);
     }
-    i = ring_t[k & 3u] > (float)xi ? k - 1u : k;
-    if (i >= last) i = last - 1u; /* x at the last frame: the last segment */
-    while (k < i + 2u && k < last) {
-        cursor_next(p, t, cur, q);
-        ++k;
-        store_key(ts, 0, q);
-        ring_t[k & 3u] = ts->t[0];
-        memcpy(ring_v[k & 3u], ts->v[0], sizeof ring_v[0]);
+    /* Slots 2 and 3: keys i + 1 and i + 2, the last key repeated past the end. */
+    cursor_next(p, t, cur);
+    store_key(p, ts, 2, &cur->G, cur->pos, cur->frame);
+    if (i + 2u <= last) {
+        cursor_next(p, t, cur);
+        store_key(p, ts, 3, &cur->G, cur->pos, cur->frame);
+    } else {
+        memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
+        ts->t[3] = ts->t[2];
     }
     ts->i = i;
-    for (s = 0; s < 4u; ++s) {
-        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
-        if (j > last) j = last;
-        ts->t[s] = ring_t[j & 3u];
-        memcpy(ts->v[s], ring_v[j & 3u], sizeof ts->v[s]);
-    }
     set_curve(ts);
 }
 
@@ -404,11 +398,11 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
             memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
             ts->i++;
             if (ts->i + 2u <= last) {
-                int32_t q[4];
-                cursor_next(p, &ts->L, &ts->cur, q);
-                store_key(ts, 3, q);
+                cursor_next(p, &ts->L, &ts->cur);
+                store_key(p, ts, 3, &ts->cur.G, ts->cur.pos, ts->cur.frame);
             } else {
-                repeat_slot(ts, 3, 2);
+                memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
+                ts->t[3] = ts->t[2];
             }
         }
         if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
@@ -434,13 +428,12 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
     for (i = 0; i < H.tracks; ++i) {
         track_state* ts = &tracks[i];
         memset(ts, 0, sizeof *ts);
-        track_geometry(d, H.frames, H.group_shift, at, H.size, &ts->L);
+        track_geometry(d, H.frames, at, H.size, &ts->L);
         if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
         if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
         if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
-            int32_t q[4];
-            group_open(p, &ts->L, 0, &ts->cur, q);
-            store_key(ts, 0, q);
+            cursor_seek(p, &ts->L, 0, 0, &ts->cur);
+            store_key(p, ts, 0, &ts->cur.G, 0, 0);
         }
         at = ts->L.end;
         d += desc_size(ts->L.kind);
@@ -495,53 +488,46 @@ static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tran
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Every rule of one track's seek table, group table and records, decoding every key. */
+/* Every rule of one track's seek table, group table and data, reading every key. */
 static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
     uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, b;
-    uint32_t g, c, k, key = 0, j, last_frame = 0;
-    cursor cur;
+    uint32_t g, c, j, last_frame = 0;
     /* Padding after the seek entries and the group entries is zero. */
     for (b = (uint64_t)t->seeks * t->group_bits; b < 32u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u); ++b)
         if (mcd_read_bits(p + t->seek, b, 1)) return MCD_ERROR_MALFORMED;
     for (b = (uint64_t)t->groups * t->entry_bits; b < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++b)
         if (mcd_read_bits(p + t->table, b, 1)) return MCD_ERROR_MALFORMED;
-    /* Every key in order: records and outliers within the data area, groups back to back. */
     for (g = 0; g < t->groups; ++g) {
-        uint64_t ebit = (uint64_t)g * t->entry_bits + t->offset_bits + t->frame_bits;
-        uint32_t n = t->keys - (g << t->group_shift), keybits = 0;
-        int32_t q[4];
-        if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
-        if (mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits, t->offset_bits) != bit) return MCD_ERROR_MALFORMED;
-        for (c = 0; c <= t->dims; ++c) keybits += mcd_read_bits(p + t->table, ebit + WIDTH_BITS * c, WIDTH_BITS);
-        if (bit + (uint64_t)(n - 1u) * keybits > data_bits) return MCD_ERROR_MALFORMED;
-        group_open(p, t, g, &cur, q);
-        for (k = 0; k < n; ++k) {
-            if (k > 0) {
-                /* The record's escape codes tell how many outlier bits it consumes. */
-                uint64_t need = cur.exc;
-                uint32_t fb = cur.bit + cur.w[0];
-                if (cur.w[0] && mcd_read_bits(p + t->data, cur.bit, cur.w[0]) == ((uint32_t)1 << cur.w[0]) - 1u)
-                    need += t->frame_bits;
-                for (c = 0; c < t->dims; ++c) {
-                    uint32_t wc = cur.w[c + 1];
-                    if (wc && mcd_read_bits(p + t->data, fb, wc) == (uint32_t)1 << (wc - 1u)) need += t->abits[c];
-                    fb += wc;
-                }
-                if (need > data_bits) return MCD_ERROR_MALFORMED;
-                cursor_next(p, t, &cur, q);
-            }
+        group G;
+        uint32_t escapes = 0, frame, w;
+        group_read(p, t, g, &G);
+        /* Groups lie back to back from the start of the data area, each within it. */
+        if (G.gaps != bit) return MCD_ERROR_MALFORMED;
+        for (c = 0; c < t->dims; ++c)
+            if (G.width[c] > MAX_VALUE_WIDTH) return MCD_ERROR_MALFORMED;
+        if ((uint64_t)G.outliers > data_bits) return MCD_ERROR_MALFORMED;
+        w = G.gap_width;
+        for (j = 1; j < G.count; ++j)
+            if (w && mcd_read_bits(p + t->data, G.gaps + (j - 1u) * w, w) == ((uint32_t)1 << w) - 1u) ++escapes;
+        if ((uint64_t)G.outliers + (uint64_t)escapes * t->frame_bits > data_bits) return MCD_ERROR_MALFORMED;
+        /* Frames increase from 0 to the last frame, the last key's; values within bounds. */
+        for (j = 0; j < G.count; ++j) {
+            cursor cur;
+            int32_t q[4];
+            cursor_seek(p, t, g, j, &cur);
+            frame = cur.frame;
+            if (g == 0 && j == 0 ? frame != 0 : (frame <= last_frame || frame > frames - 1u)) return MCD_ERROR_MALFORMED;
+            last_frame = frame;
+            group_value(p, t, &G, j, q);
             for (c = 0; c < t->dims; ++c) {
-                if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
+                if ((int64_t)G.base[c] + ((int64_t)1 << G.width[c]) - 1 >= ((int64_t)1 << 30) || G.base[c] <= -(1 << 30))
+                    return MCD_ERROR_MALFORMED;
                 if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
             }
-            /* Frames increase from 0 to the last frame, which is the last key's. */
-            if (key == 0 ? cur.frame != 0 : (cur.frame <= last_frame || cur.frame > frames - 1u)) return MCD_ERROR_MALFORMED;
-            if (key == t->keys - 1u && cur.frame != frames - 1u) return MCD_ERROR_MALFORMED;
-            last_frame = cur.frame;
-            key++;
         }
-        bit = cur.exc;
+        bit = (uint64_t)G.outliers + (uint64_t)escapes * t->frame_bits;
     }
+    if (last_frame != frames - 1u) return MCD_ERROR_MALFORMED;
     /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
     if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
     for (; bit < data_bits; ++bit)
@@ -605,7 +591,7 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
         if (p[k]) return MCD_ERROR_MALFORMED;
     for (i = 0, off = 0; i < H.tracks; ++i) {
         track_layout t;
-        r = track_geometry(H.descs + off, H.frames, H.group_shift, at, H.size, &t);
+        r = track_geometry(H.descs + off, H.frames, at, H.size, &t);
         if (r != MCD_OK) return r;
         if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
         r = check_track(p, &t, H.frames);

@@ -331,13 +331,10 @@ def payload_frames(payload: bytes) -> np.ndarray:
 
 
 def skeleton_records(sk: Skeleton) -> bytes:
-    """The SKEL section's node records as the runtime reads parents and rest offsets
-    (16-byte section header, 32 bytes per node); names and channels are not needed here."""
-    out = bytearray(16 + 32 * sk.node_count)
-    struct.pack_into("<I", out, 0, sk.node_count)
-    for i in range(sk.node_count):
-        struct.pack_into("<i4x3f", out, 16 + 32 * i, int(sk.parents[i]), *sk.offsets[i].astype(np.float32))
-    return bytes(out)
+    """The skeleton as the runtime reads it (the container's own ``SKEL`` section): parents,
+    rest translations and, when any differs from the identity, rest rotations."""
+    from ..container import skeleton_section
+    return skeleton_section(sk, 1.0)
 
 
 def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: float,

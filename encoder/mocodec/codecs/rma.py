@@ -28,7 +28,7 @@ from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
 from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
-from .rma_bitstream import DEFAULT_GROUP_SHIFT, CurveTrack, payload
+from .rma_bitstream import GROUP_SHIFTS, CurveTrack, payload
 
 SECTION_HEADER = 16
 
@@ -44,14 +44,15 @@ class RMASettings(KeyframeSettings):
         Key cells of this many frames, keys kept to one a cell where they can (a key time then
         costs about a bit of the cell mask; a second key in a cell a list entry); 1 ... 8.
         None: 4 when every node's tolerance is at least 0.25 cm, else 1 (dense keys).
-    group_shift : int, default 4
-        Key values come in groups of ``2**group_shift`` keys (docs/FORMAT.md, RMAL): a random
-        access decodes at most one group's records per track, and each group costs an entry
-        (offset, widths, its first key whole). Larger groups: fewer bytes, slower random access.
+    group_shifts : tuple of int, default (4, 5)
+        Each track's keys come in groups of ``2**s`` keys, s the one of these that takes the
+        fewest bytes (docs/FORMAT.md, RMAL): a group costs an entry (offset, first frame,
+        widths, smallest values), and a random access sums up to a group's gaps. Larger
+        groups: fewer entries, wider value fields, a longer walk.
     """
 
     key_grid: int | None = None
-    group_shift: int = DEFAULT_GROUP_SHIFT
+    group_shifts: tuple[int, ...] = GROUP_SHIFTS
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -63,9 +64,11 @@ class RMASettings(KeyframeSettings):
         self.key_grid = int(self.key_grid)
         if not 1 <= self.key_grid <= 8:
             raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
-        self.group_shift = int(self.group_shift)
-        if not 1 <= self.group_shift <= 6:
-            raise ValueError(f"group_shift must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shift}")
+        if isinstance(self.group_shifts, (int, str)):
+            self.group_shifts = (int(self.group_shifts),)
+        self.group_shifts = tuple(int(g) for g in self.group_shifts)
+        if not self.group_shifts or any(not 1 <= g <= 6 for g in self.group_shifts):
+            raise ValueError(f"group_shifts must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shifts}")
 
 
 def section_prefix(clip_count: int) -> bytes:
@@ -84,11 +87,11 @@ def curve_track(t: Track) -> CurveTrack:
                       ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=t.split)
 
 
-def serialize(motion: Motion, tracks: list[Track], group_shift: int = DEFAULT_GROUP_SHIFT) -> bytes:
+def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
     """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
     rows, constants, animated = node_modes(motion, tracks)
     modes = [(rm, tm, 0) for rm, tm, _, _ in rows]
-    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shift)
+    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts)
 
 
 JUMP_CM = 20.0  # a point moving this far in one frame is the capture jumping, not motion
@@ -117,7 +120,7 @@ class RMAFitter(KeyframeFitter):
         return np.unique([0, 1, self.frames - 1] if self.split else [0, self.frames - 1])
 
     def payload(self, tracks: list[Track]) -> bytes:
-        return serialize(self.motion, tracks, self.settings.group_shift)
+        return serialize(self.motion, tracks, self.settings.group_shifts)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
