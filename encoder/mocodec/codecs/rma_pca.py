@@ -39,7 +39,6 @@ from ..rma import segment as S
 from ..tolerance import Tolerance
 from . import CheckFn, CodecOutput, ProgressFn
 from .rma import curve_track, frame0_jumps
-from .rma_bitstream import DEFAULT_GROUP_SHIFT
 from .rma_bitstream import payload as rmal_payload
 from .rma_reference import decode_payload
 
@@ -86,9 +85,6 @@ class RmaPcaSettings:
         Self-distance threshold of the analysis, RMS distance per marker.
     ref_frames : float, default 0.25
         Max error of a repeated piece's reference curve, in frames of its primary.
-    group_shift : int, default 4
-        The curve sets' key values come in groups of ``2**group_shift`` keys (as in ``rma``,
-        docs/FORMAT.md "RMAL"): larger groups, fewer bytes and slower random access.
     blend_seconds : float, default 0.06
         Width of the cross-fade between two pieces of a clip (the seed's clip-boundary
         smoothing, ~60 ms): each piece's curves reach half of it into the neighbour and the
@@ -106,7 +102,6 @@ class RmaPcaSettings:
     repeats: bool = False
     repeat_threshold_cm: float = 5.0
     ref_frames: float = 0.25
-    group_shift: int = DEFAULT_GROUP_SHIFT
     blend_seconds: float = 0.06
 
     def __post_init__(self) -> None:
@@ -129,9 +124,6 @@ class RmaPcaSettings:
             raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
         if not isinstance(self.repeats, bool):
             raise ValueError(f"repeats must be true or false, got {self.repeats!r}")
-        self.group_shift = int(self.group_shift)
-        if not 1 <= self.group_shift <= 6:
-            raise ValueError(f"group_shift must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shift}")
         self.blend_seconds = float(self.blend_seconds)
         if not 0.0 <= self.blend_seconds <= 0.5:
             raise ValueError(f"blend_seconds must be 0 ... 0.5, got {self.blend_seconds}")
@@ -273,11 +265,11 @@ def pack_coefficients(coef: np.ndarray) -> list[np.ndarray]:
     return [padded[:, j:j + PER_NODE] for j in range(0, padded.shape[1], PER_NODE)]
 
 
-def curve_set(tracks: list[Track | None], frames: int, group_shift: int) -> bytes:
+def curve_set(tracks: list[Track | None], frames: int) -> bytes:
     """An ``RMAL`` v2 payload whose node ``i`` translation is ``tracks[i]`` (None: a node at
     rest, whose translation is zero)."""
     modes = [(0, 0 if t is None else 2, 0) for t in tracks]
-    return rmal_payload(frames, modes, [], [curve_track(t) for t in tracks if t is not None], group_shift)
+    return rmal_payload(frames, modes, [], [curve_track(t) for t in tracks if t is not None])
 
 
 def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first: list[Track] | None = None,
@@ -290,7 +282,7 @@ def coefficient_set(coef: np.ndarray, budget: float, s: "RmaPcaSettings", first:
         tracks.append(None)
     else:
         tracks += [_curve_track(c, budget, s.quant_fraction, s.key_grid, split) for c in pack_coefficients(coef)]
-    return curve_set(tracks, frames, s.group_shift)
+    return curve_set(tracks, frames)
 
 
 def track_curve(t: Track) -> np.ndarray:
@@ -533,7 +525,7 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
     for ci, (m, pr) in enumerate(zip(motions, prepared)):
         rc, rb = root_curves(pr.root, cm, s)
         own = [curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid, jumps[ci]) for c, bud in zip(rc, rb)],
-                         m.frame_count, s.group_shift)]
+                         m.frame_count)]
         mine = [j for j, q in enumerate(plan) if q.clip == ci]
         at = CLIP_HEADER + PIECE_RECORD * len(mine) + len(own[0])
         rows = []
