@@ -352,7 +352,7 @@ typedef struct rmap_state {
 
 typedef struct rmap_views {
     rmap_state* st;
-    float* rest;           /* [joints][9] rest frames, by columns */
+    float* rest;           /* [joints][4] rest frames as quaternions */
     int32_t* joint;        /* [nodes] joint record of a node, -1 none */
     float* world;          /* [nodes][4] world rotations in the aligned frame */
     float* markers;        /* [3M] */
@@ -394,7 +394,7 @@ static void clip_needs(const prefix* P, const clip_layout* C, rmap_state* st) {
 static size_t layout(const prefix* P, const mcd_clip_view* v, const rmap_state* st, uint8_t* base, rmap_views* s) {
     size_t at = mcd_align16(sizeof(rmap_state)), sizes[6];
     uint32_t i;
-    sizes[0] = mcd_align16(4u * 9u * (size_t)P->joints);
+    sizes[0] = mcd_align16(4u * 4u * (size_t)P->joints);
     sizes[1] = mcd_align16(4u * (size_t)v->node_count);
     sizes[2] = mcd_align16(16u * (size_t)v->node_count);
     sizes[3] = mcd_align16(4u * 3u * (size_t)P->markers);
@@ -481,31 +481,35 @@ static void rest_frame(const float axis_in[3], float m[9]) {
 
 /* Unit quaternion of a rotation matrix (Shepperd); finite for any bounded input. */
 static mcd_quat quat_from_matrix(const float r[9]) {
-    float tr = r[0] + r[4] + r[8], s, n;
+    float tr = r[0] + r[4] + r[8], s, inv, n;
     mcd_quat q;
     if (tr > 0.0f) {
         s = 2.0f * sqrtf(tr + 1.0f);
+        inv = 1.0f / s;
         q.w = 0.25f * s;
-        q.x = (r[7] - r[5]) / s;
-        q.y = (r[2] - r[6]) / s;
-        q.z = (r[3] - r[1]) / s;
+        q.x = (r[7] - r[5]) * inv;
+        q.y = (r[2] - r[6]) * inv;
+        q.z = (r[3] - r[1]) * inv;
     } else if (r[0] > r[4] && r[0] > r[8]) {
         s = 2.0f * sqrtf(fmaxf(1.0f + r[0] - r[4] - r[8], 1e-12f));
-        q.w = (r[7] - r[5]) / s;
+        inv = 1.0f / s;
+        q.w = (r[7] - r[5]) * inv;
         q.x = 0.25f * s;
-        q.y = (r[1] + r[3]) / s;
-        q.z = (r[2] + r[6]) / s;
+        q.y = (r[1] + r[3]) * inv;
+        q.z = (r[2] + r[6]) * inv;
     } else if (r[4] > r[8]) {
         s = 2.0f * sqrtf(fmaxf(1.0f + r[4] - r[0] - r[8], 1e-12f));
-        q.w = (r[2] - r[6]) / s;
-        q.x = (r[1] + r[3]) / s;
+        inv = 1.0f / s;
+        q.w = (r[2] - r[6]) * inv;
+        q.x = (r[1] + r[3]) * inv;
         q.y = 0.25f * s;
-        q.z = (r[5] + r[7]) / s;
+        q.z = (r[5] + r[7]) * inv;
     } else {
         s = 2.0f * sqrtf(fmaxf(1.0f + r[8] - r[0] - r[4], 1e-12f));
-        q.w = (r[3] - r[1]) / s;
-        q.x = (r[2] + r[6]) / s;
-        q.y = (r[5] + r[7]) / s;
+        inv = 1.0f / s;
+        q.w = (r[3] - r[1]) * inv;
+        q.x = (r[2] + r[6]) * inv;
+        q.y = (r[5] + r[7]) * inv;
         q.z = 0.25f * s;
     }
     n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
@@ -514,10 +518,11 @@ static mcd_quat quat_from_matrix(const float r[9]) {
         q.w = 1.0f;
         return q;
     }
-    q.x /= n;
-    q.y /= n;
-    q.z /= n;
-    q.w /= n;
+    inv = 1.0f / n;
+    q.x *= inv;
+    q.y *= inv;
+    q.z *= inv;
+    q.w *= inv;
     return q;
 }
 
@@ -538,7 +543,7 @@ static void prepare(const mcd_clip_view* v, const prefix* P, const rmap_views* s
     for (i = 0; i < P->joints; ++i) {
         const uint8_t* j = P->joint_table + (size_t)JOINT_RECORD * i;
         uint32_t node = mcd_rd_u16(j), child = mcd_rd_u16(j + 2);
-        float axis[3];
+        float axis[3], m[9];
         if (child != NO_INDEX) {
             mcd_skel_rest_translation(v->skeleton, child, axis);
         } else {
@@ -546,7 +551,8 @@ static void prepare(const mcd_clip_view* v, const prefix* P, const rmap_views* s
             axis[1] = mcd_rd_f32(j + 16);
             axis[2] = mcd_rd_f32(j + 20);
         }
-        rest_frame(axis, s->rest + 9u * i);
+        rest_frame(axis, m);
+        mcd_set_rotation(s->rest + 4u * i, quat_from_matrix(m));
         s->joint[node] = (int32_t)i;
     }
     s->st->slot[0].piece = s->st->slot[1].piece = -1;
@@ -573,37 +579,83 @@ static float coef_of(const mcd_transform* curves, uint32_t first, uint32_t i) {
     return curves[first + i / PER_NODE].translation[i % PER_NODE];
 }
 
-/* out[d] += scale x code d, for the `count` 12-bit codes from code index `first` (two codes in
- * three bytes, the low one first). */
-static void add_codes12(float* out, const uint8_t* packed, size_t first, uint32_t count, float scale) {
+/* The axis codes are an LSB-first stream of 12-bit fields: three bytes hold two codes, six
+ * bytes four. */
+static float code12_lo(const uint8_t* b) {
+    return (float)(int32_t)((uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8));
+}
+static float code12_hi(const uint8_t* b) {
+    return (float)(int32_t)((uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4));
+}
+static uint64_t codes48(const uint8_t* b) {
+    return (uint64_t)mcd_rd_u32(b) | ((uint64_t)mcd_rd_u16(b + 4) << 32);
+}
+static float code_at(uint64_t w, unsigned shift) {
+    return (float)(int32_t)((w >> shift) & 0xFFFu);
+}
+
+/* out[d] += scale x code d, for the `count` 12-bit codes from code index `first`. */
+static void add_axis(float* restrict out, const uint8_t* restrict packed, size_t first, uint32_t count, float scale) {
     const uint8_t* b = packed + 3u * (first / 2u);
     uint32_t d = 0;
     if ((first & 1u) && count) {
-        out[0] += scale * (float)((uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4));
+        out[0] += scale * code12_hi(b);
         b += 3;
         d = 1;
     }
-    for (; d + 1u < count; d += 2u, b += 3) {
-        out[d] += scale * (float)((uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8));
-        out[d + 1u] += scale * (float)((uint32_t)(b[1] >> 4) | ((uint32_t)b[2] << 4));
+    for (; d + 4u <= count; d += 4u, b += 6) {
+        uint64_t w = codes48(b);
+        out[d] += scale * code_at(w, 0);
+        out[d + 1u] += scale * code_at(w, 12);
+        out[d + 2u] += scale * code_at(w, 24);
+        out[d + 3u] += scale * code_at(w, 36);
     }
-    if (d < count) out[d] += scale * (float)((uint32_t)b[0] | ((uint32_t)(b[1] & 15u) << 8));
+    for (; d + 1u < count; d += 2u, b += 3) {
+        out[d] += scale * code12_lo(b);
+        out[d + 1u] += scale * code12_hi(b);
+    }
+    if (d < count) out[d] += scale * code12_lo(b);
+}
+
+/* Two axes at once (one pass over `out`), each starting on a byte triple: `count` is even. */
+static void add_axis_pair(float* restrict out, const uint8_t* restrict a, const uint8_t* restrict b, uint32_t count,
+                          float sa, float sb) {
+    uint32_t d = 0;
+    for (; d + 4u <= count; d += 4u, a += 6, b += 6) {
+        uint64_t wa = codes48(a), wb = codes48(b);
+        out[d] += sa * code_at(wa, 0) + sb * code_at(wb, 0);
+        out[d + 1u] += sa * code_at(wa, 12) + sb * code_at(wb, 12);
+        out[d + 2u] += sa * code_at(wa, 24) + sb * code_at(wb, 24);
+        out[d + 3u] += sa * code_at(wa, 36) + sb * code_at(wb, 36);
+    }
+    if (d < count) {
+        out[d] += sa * code12_lo(a) + sb * code12_lo(b);
+        out[d + 1u] += sa * code12_hi(a) + sb * code12_hi(b);
+    }
 }
 
 /* markers += weight x (mean + axes x coefficients) of group g, dequantizing its codes as it
  * goes: value = min + code x step, so sum_a c_a axis_a = sum_a c_a min_a + sum_a (c_a step_a) code_a. */
-static void add_group_markers(const prefix* P, uint32_t g, const float* coef, float weight, float* markers) {
+static void add_group_markers(const prefix* P, uint32_t g, const float* coef, float weight, float* restrict markers) {
     const uint8_t* r = group_at(P, g);
-    uint32_t k = mcd_rd_u32(r), dims = 3u * P->markers, a, d;
+    uint32_t k = mcd_rd_u32(r), dims = 3u * P->markers, a = 0, d;
     const uint8_t* pairs = r + GROUP_HEADER;
-    const uint8_t* mean_codes = pairs + 8u * (size_t)k;
+    const uint8_t* restrict mean_codes = pairs + 8u * (size_t)k;
     const uint8_t* axis_codes = mean_codes + 2u * (size_t)dims;
     float offset = mcd_rd_f32(r + 8), mean_step = weight * mcd_rd_f32(r + 12);
     for (a = 0; a < k; ++a) offset += coef[a] * mcd_rd_f32(pairs + 8u * a);
     offset *= weight;
-    for (d = 0; d < dims; ++d) markers[d] += offset + mean_step * (float)mcd_rd_u16(mean_codes + 2u * d);
-    for (a = 0; a < k; ++a)
-        add_codes12(markers, axis_codes, (size_t)a * dims, dims, weight * coef[a] * mcd_rd_f32(pairs + 8u * a + 4u));
+    for (d = 0; d < dims; ++d)
+        markers[d] += offset + mean_step * (float)((uint32_t)mean_codes[2u * d] | ((uint32_t)mean_codes[2u * d + 1u] << 8));
+    a = 0;
+    if (!(dims & 1u)) /* every axis starts on a byte triple: two at a time */
+        for (; a + 1u < k; a += 2u)
+            add_axis_pair(markers, axis_codes + (size_t)3u * (a * (size_t)dims / 2u),
+                          axis_codes + (size_t)3u * ((a + 1u) * (size_t)dims / 2u), dims,
+                          weight * coef[a] * mcd_rd_f32(pairs + 8u * a + 4u),
+                          weight * coef[a + 1u] * mcd_rd_f32(pairs + 8u * a + 12u));
+    for (; a < k; ++a)
+        add_axis(markers, axis_codes, (size_t)a * dims, dims, weight * coef[a] * mcd_rd_f32(pairs + 8u * a + 4u));
 }
 
 /* markers += weight x the markers of piece p at x; `other` is the piece the same sample also
@@ -670,24 +722,21 @@ static mcd_quat removed_rotation(const clip_layout* C, const mcd_transform* root
     return q;
 }
 
-/* World rotation (aligned frame) of joint record `slot` from the markers: W Rest^T. */
+/* World rotation (aligned frame) of joint record `slot` from the markers: the rotation from the
+ * rest frame to the frame W the markers span, W Rest^T. */
 static mcd_quat joint_rotation(const prefix* P, const rmap_views* s, uint32_t slot) {
     const uint8_t* j = P->joint_table + (size_t)JOINT_RECORD * slot;
-    uint32_t origin = mcd_rd_u16(j + 8), c, r;
+    uint32_t origin = mcd_rd_u16(j + 8), c;
     const float* am = s->markers + 3u * mcd_rd_u16(j + 4);
     const float* sm = s->markers + 3u * mcd_rd_u16(j + 6);
-    const float* rest = s->rest + 9u * slot;
-    float a[3] = {0.0f, 0.0f, 0.0f}, u[3], vv[3], wm[9], rm[9];
+    float a[3] = {0.0f, 0.0f, 0.0f}, u[3], vv[3], wm[9];
     if (origin != NO_INDEX) memcpy(a, s->markers + 3u * origin, sizeof a);
     for (c = 0; c < 3; ++c) {
         u[c] = am[c] - a[c];
         vv[c] = sm[c] - a[c];
     }
     frame_from(u, vv, wm);
-    for (r = 0; r < 3; ++r)
-        for (c = 0; c < 3; ++c)
-            rm[r * 3 + c] = wm[r * 3] * rest[c * 3] + wm[r * 3 + 1] * rest[c * 3 + 1] + wm[r * 3 + 2] * rest[c * 3 + 2];
-    return quat_from_matrix(rm);
+    return mcd_qmul(quat_from_matrix(wm), mcd_qconj(quat_at(s->rest + 4u * slot)));
 }
 
 static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
