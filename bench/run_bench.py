@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import subprocess
 import sys
@@ -47,7 +48,11 @@ def build_speed_tool(out: Path) -> Path:
 
 
 def speed(exe: Path, asset: Path, runs: int) -> dict:
-    r = subprocess.run([str(exe), str(asset), str(runs)], check=True, capture_output=True, text=True)
+    """The tool's figures; under ``flock $MOCODEC_BENCH_LOCK`` when that is set, so timings on
+    a shared machine never overlap (encoding runs outside the lock)."""
+    lock = os.environ.get("MOCODEC_BENCH_LOCK")
+    cmd = [str(exe), str(asset), str(runs)]
+    r = subprocess.run((["flock", lock] if lock else []) + cmd, check=True, capture_output=True, text=True)
     return json.loads(r.stdout)
 
 
