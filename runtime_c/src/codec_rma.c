@@ -139,28 +139,53 @@ typedef struct group {
     int32_t base[4];              /* per component, the group's smallest value */
 } group;
 
+/* Fields read in order from a bit position: a 64-bit buffer refilled when it runs low. */
+typedef struct bit_reader {
+    const uint8_t* p;
+    uint64_t buf;
+    uint32_t next, have; /* byte of the next refill; valid bits in buf */
+} bit_reader;
+
+static inline void reader_at(bit_reader* r, const uint8_t* p, uint64_t bit) {
+    r->p = p;
+    r->next = (uint32_t)(bit >> 3) + 7u;
+    r->buf = mcd_rd_u64(p + (size_t)(bit >> 3)) >> (bit & 7u);
+    r->have = 56u - (uint32_t)(bit & 7u);
+}
+
+/* `n` <= 32 bits. */
+static inline uint32_t reader_take(bit_reader* r, uint32_t n) {
+    uint32_t v;
+    if (r->have < n) { /* top up to at least 56 bits */
+        uint64_t more = mcd_rd_u64(r->p + r->next);
+        r->buf |= more << r->have;
+        r->next += (63u - r->have) >> 3;
+        r->have |= 56u;
+    }
+    v = n ? (uint32_t)(r->buf & (((uint64_t)1 << n) - 1u)) : 0u;
+    r->buf >>= n;
+    r->have -= n;
+    return v;
+}
+
 static void group_read(const uint8_t* p, const track_layout* t, uint32_t g, group* G) {
-    const uint8_t* table = p + t->table;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
+    bit_reader r;
     uint32_t c, size = 1u << t->group_shift;
+    reader_at(&r, p + t->table, (uint64_t)g * t->entry_bits);
     G->index = g;
     G->first = g << t->group_shift;
     G->count = t->keys - G->first < size ? t->keys - G->first : size;
-    G->gaps = mcd_read_bits(table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    G->frame = mcd_read_bits(table, bit, t->frame_bits);
-    bit += t->frame_bits;
-    G->gap_width = (uint8_t)mcd_read_bits(table, bit, GAP_WIDTH_BITS);
-    bit += GAP_WIDTH_BITS;
+    G->gaps = reader_take(&r, t->offset_bits);
+    G->frame = reader_take(&r, t->frame_bits);
+    G->gap_width = (uint8_t)reader_take(&r, GAP_WIDTH_BITS);
     G->value_bits = 0;
     for (c = 0; c < t->dims; ++c) {
-        G->width[c] = (uint8_t)mcd_read_bits(table, bit, VALUE_WIDTH_BITS);
+        G->width[c] = (uint8_t)reader_take(&r, VALUE_WIDTH_BITS);
         G->value_bits += G->width[c];
-        bit += VALUE_WIDTH_BITS;
     }
     for (c = 0; c < t->dims; ++c) {
-        G->base[c] = mcd_read_signed(table, bit, t->abits[c]);
-        bit += t->abits[c];
+        uint32_t n = t->abits[c], u = reader_take(&r, n), sign = (uint32_t)1 << (n - 1u);
+        G->base[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
     }
     G->values = G->gaps + (G->count - 1u) * G->gap_width;
     G->outliers = G->values + G->count * G->value_bits;
@@ -266,6 +291,11 @@ typedef struct node_plan {
     int16_t track[3];   /* rotation, translation, scale track, or -1 */
     uint16_t pad;
 } node_plan;
+
+/* The scratch sizes are part of the format (docs/FORMAT.md, RMAL "Sampling"): changing these
+ * structures is a new section version. Plain 32-bit fields only, so every ABI agrees. */
+typedef char node_plan_is_48_bytes[sizeof(node_plan) == 48u ? 1 : -1];
+typedef char track_state_is_332_bytes[sizeof(track_state) == 332u ? 1 : -1];
 
 static size_t rma_scratch_size(const mcd_clip_view* v) {
     uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
@@ -381,10 +411,10 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     set_curve(ts);
 }
 
-/* The curve of one track at x: the cached segment, a step or two forward in sequential
- * playback, or a fresh locate. */
+/* The curve of one track at x: the cached segment, the next one in sequential playback, or a
+ * fresh locate. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, last = ts->L.keys - 1u, steps;
+    uint32_t c, last = ts->L.keys - 1u;
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -393,7 +423,8 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
     } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
-        for (steps = 0; steps < 2 && x >= ts->t[2] && ts->i + 1u < last; ++steps) {
+        /* Sequential playback moves on by a key; anything further is a random access. */
+        if (ts->i + 2u <= last && x < ts->t[3]) {
             memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
             memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
             ts->i++;
@@ -404,11 +435,10 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
                 memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
                 ts->t[3] = ts->t[2];
             }
-        }
-        if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
-            locate(p, ts, x);
-        else
             set_curve(ts);
+        } else {
+            locate(p, ts, x);
+        }
     }
     s = (x - ts->t1) * ts->inv_h;
     for (c = 0; c < ts->L.dims; ++c)
