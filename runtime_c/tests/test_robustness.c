@@ -57,7 +57,7 @@ void test_corruption_sweep(void) {
         unsigned long accepted = 0;
         if (!copy) break;
         memcpy(copy, f->data, f->size);
-        for (pos = 0; pos < f->size && mcd_test_failures() < 100; ++pos) {
+        for (pos = 0; pos < f->size && mcd_test_failures() < 100; pos = mcd_test_sweep_next(pos, 211)) {
             for (m = 0; m < 4; ++m) {
                 mcd_result r;
                 int e;
