@@ -73,6 +73,7 @@ uint32_t mcd_test_crc32(const uint8_t* data, size_t size);
 void mcd_test_fix_crc(uint8_t* asset, size_t size);
 
 uint32_t mcd_test_rd_u32(const uint8_t* p);
+float mcd_test_rd_f32(const uint8_t* p); /* little-endian, as the format stores floats */
 void mcd_test_wr_u32(uint8_t* p, uint32_t v);
 void mcd_test_wr_u16(uint8_t* p, uint16_t v);
 

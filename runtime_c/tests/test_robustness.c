@@ -187,8 +187,8 @@ void test_clip_directory_errors(void) {
             continue;
         }
         frames = mcd_test_rd_u32(f->data + rec + 24);
-        memcpy(&rate, f->data + rec + 28, 4);
-        memcpy(&duration, f->data + rec + 32, 4);
+        rate = mcd_test_rd_f32(f->data + rec + 28);
+        duration = mcd_test_rd_f32(f->data + rec + 32);
         check_edit(f, clip, 0, 4, 1, MCD_ERROR_MALFORMED, "clip_count 0");
         check_edit(f, clip + 4, 0, 4, 1, MCD_ERROR_MALFORMED, "string_block_offset 0");
         check_edit(f, rec, 0xFFFFu, 4, 1, MCD_ERROR_MALFORMED, "name_offset past the string block");
