@@ -27,6 +27,9 @@ make -s -C runtime_c test || failed=1
 step "C runtime: fuzz smoke (${FUZZ_SECONDS:-20} s each target)"
 make -s -C runtime_c fuzz FUZZ_SECONDS="${FUZZ_SECONDS:-20}" || failed=1
 
+step "C runtime on every platform here: Linux x86-64, aarch64 (qemu), s390x big-endian (qemu), Windows x86-64 (wine); CMake package and consumers"
+make -s -C runtime_c platforms || failed=1
+
 step "Python: encoder, binding, CLI, cross-checks with the C runtime"
 .venv/bin/python -m pytest -q -ra tests || failed=1
 

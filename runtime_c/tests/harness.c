@@ -99,6 +99,17 @@ unsigned long mcd_test_failures(void) {
     return g_failures;
 }
 
+int mcd_test_quick(void) {
+    const char* v = getenv("MCD_TEST_QUICK");
+    return v && v[0] && strcmp(v, "0") != 0;
+}
+
+size_t mcd_test_sweep_next(size_t pos, size_t quick_stride) {
+    static int quick = -1;
+    if (quick < 0) quick = mcd_test_quick();
+    return quick && pos >= 64u && quick_stride > 1u ? pos + quick_stride : pos + 1u;
+}
+
 const char* mcd_test_golden_dir(void) {
     return g_golden_dir;
 }
@@ -264,6 +275,13 @@ uint32_t mcd_test_rd_u32(const uint8_t* p) {
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
+float mcd_test_rd_f32(const uint8_t* p) {
+    uint32_t u = mcd_test_rd_u32(p);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
 void mcd_test_wr_u32(uint8_t* p, uint32_t v) {
     p[0] = (uint8_t)v;
     p[1] = (uint8_t)(v >> 8);
@@ -369,8 +387,8 @@ int main(int argc, char** argv) {
             return 2;
         }
     }
-    printf("mocodec %u.%u.%u tests (golden: %s)\n", MCD_VERSION_MAJOR, MCD_VERSION_MINOR, MCD_VERSION_PATCH,
-           g_golden_dir);
+    printf("mocodec %u.%u.%u tests (golden: %s)%s\n", MCD_VERSION_MAJOR, MCD_VERSION_MINOR, MCD_VERSION_PATCH,
+           g_golden_dir, mcd_test_quick() ? ", MCD_TEST_QUICK: damage sweeps shortened" : "");
     for (i = 0; i < n; ++i) {
         if (!selected(k_tests[i].name, argc, argv, first)) continue;
         g_checks = g_failures = 0;

@@ -20,6 +20,12 @@ void mcd_test_skip(const char* reason);
 /* Failed checks of the running test so far: lets a sweep stop early once it is clearly broken. */
 unsigned long mcd_test_failures(void);
 
+/* MCD_TEST_QUICK=1 in the environment (the cross-platform runs under qemu and wine set it)
+ * shortens the byte-by-byte damage sweeps: they still visit every position below 64 (headers),
+ * then every `quick_stride`-th one. The runner's first line says when it is on. */
+int mcd_test_quick(void);
+size_t mcd_test_sweep_next(size_t pos, size_t quick_stride);
+
 #define CHECK(cond) mcd_test_check((cond) != 0, __FILE__, __LINE__, #cond)
 #define CHECK_RESULT(expr, want) mcd_test_check_result((expr), (want), __FILE__, __LINE__, #expr)
 #define FAIL(...) mcd_test_fail(__FILE__, __LINE__, __VA_ARGS__)
@@ -67,6 +73,7 @@ uint32_t mcd_test_crc32(const uint8_t* data, size_t size);
 void mcd_test_fix_crc(uint8_t* asset, size_t size);
 
 uint32_t mcd_test_rd_u32(const uint8_t* p);
+float mcd_test_rd_f32(const uint8_t* p); /* little-endian, as the format stores floats */
 void mcd_test_wr_u32(uint8_t* p, uint32_t v);
 void mcd_test_wr_u16(uint8_t* p, uint16_t v);
 

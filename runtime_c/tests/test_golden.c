@@ -227,11 +227,14 @@ static void check_cmu_skeleton(const mcd_asset* a, uint32_t s, const char* path)
 
 /* 09_11.bvh: LeftUpLeg OFFSET 1.57314 -1.85774 0.63783; its first End Site OFFSET 0 -0 1.09718. */
 static void check_09_11_offsets(const mcd_asset* a) {
+    /* Stored as float objects: where FLT_EVAL_METHOD is 1 (s390x) a float constant keeps double
+     * precision in an expression, and would never equal the float the asset holds. */
+    static const float up_leg[3] = {1.57314f, -1.85774f, 0.63783f}, end_site[3] = {0.0f, 0.0f, 1.09718f};
     mcd_node_info ni;
     CHECK_RESULT(mcd_get_node_info(a, 0, 2, &ni), MCD_OK);
-    CHECK(ni.rest_offset[0] == 1.57314f && ni.rest_offset[1] == -1.85774f && ni.rest_offset[2] == 0.63783f);
+    CHECK(ni.rest_offset[0] == up_leg[0] && ni.rest_offset[1] == up_leg[1] && ni.rest_offset[2] == up_leg[2]);
     CHECK_RESULT(mcd_get_node_info(a, 0, 6, &ni), MCD_OK);
-    CHECK(ni.rest_offset[0] == 0.0f && ni.rest_offset[1] == 0.0f && ni.rest_offset[2] == 1.09718f);
+    CHECK(ni.rest_offset[0] == end_site[0] && ni.rest_offset[1] == end_site[1] && ni.rest_offset[2] == end_site[2]);
 }
 
 /* Position channels replace the OFFSET (docs/FORMAT.md "SKEL"): a node without them keeps its

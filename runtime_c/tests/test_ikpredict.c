@@ -117,7 +117,7 @@ void test_ikpredict_damage_sweep(void) {
         CHECK(open_and_sample(t, len) != MCD_OK);
         free(t);
     }
-    for (pos = 24; pos < size; ++pos) {
+    for (pos = 24; pos < size; pos = mcd_test_sweep_next(pos, 17)) {
         size_t j;
         for (j = 0; j < 2u; ++j) {
             memcpy(copy, k_ikp_fixture, size);

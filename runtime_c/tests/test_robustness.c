@@ -57,7 +57,7 @@ void test_corruption_sweep(void) {
         unsigned long accepted = 0;
         if (!copy) break;
         memcpy(copy, f->data, f->size);
-        for (pos = 0; pos < f->size && mcd_test_failures() < 100; ++pos) {
+        for (pos = 0; pos < f->size && mcd_test_failures() < 100; pos = mcd_test_sweep_next(pos, 211)) {
             for (m = 0; m < 4; ++m) {
                 mcd_result r;
                 int e;
@@ -187,8 +187,8 @@ void test_clip_directory_errors(void) {
             continue;
         }
         frames = mcd_test_rd_u32(f->data + rec + 24);
-        memcpy(&rate, f->data + rec + 28, 4);
-        memcpy(&duration, f->data + rec + 32, 4);
+        rate = mcd_test_rd_f32(f->data + rec + 28);
+        duration = mcd_test_rd_f32(f->data + rec + 32);
         check_edit(f, clip, 0, 4, 1, MCD_ERROR_MALFORMED, "clip_count 0");
         check_edit(f, clip + 4, 0, 4, 1, MCD_ERROR_MALFORMED, "string_block_offset 0");
         check_edit(f, rec, 0xFFFFu, 4, 1, MCD_ERROR_MALFORMED, "name_offset past the string block");
