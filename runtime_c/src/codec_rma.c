@@ -128,73 +128,59 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
 }
 
 /* ---------------------------------------------------------------- key decoding */
-/* One group's entry, unpacked: where its parts lie and how wide its fields are. */
+/* One group's entry, unpacked as far as needed: the head (where its gaps lie, its first key's
+ * frame, the gap width) always, the value widths and bases once a value is read. */
 typedef struct group {
     uint32_t index, first, count; /* group number, index of its first key, keys in it */
     uint32_t frame;               /* its first key's frame */
-    uint32_t gaps, values, outliers; /* bit positions (in the data area) of its three parts */
-    uint32_t value_bits;          /* bits of one key's values */
-    uint8_t gap_width, width[4];
-    uint8_t pad[3];
-    int32_t base[4];              /* per component, the group's smallest value */
+    uint32_t gaps;                /* bit position (in the data area) of its gap fields */
+    uint32_t values, outliers;    /* ... of its value records and outlier frames (loaded) */
+    uint32_t value_bits;          /* bits of one key's values (loaded) */
+    uint8_t gap_width, loaded, width[4];
+    uint8_t pad[2];
+    int32_t base[4];              /* per component, the group's smallest value (loaded) */
 } group;
 
-/* Fields read in order from a bit position: a 64-bit buffer refilled when it runs low. */
-typedef struct bit_reader {
-    const uint8_t* p;
-    uint64_t buf;
-    uint32_t next, have; /* byte of the next refill; valid bits in buf */
-} bit_reader;
-
-static inline void reader_at(bit_reader* r, const uint8_t* p, uint64_t bit) {
-    r->p = p;
-    r->next = (uint32_t)(bit >> 3) + 7u;
-    r->buf = mcd_rd_u64(p + (size_t)(bit >> 3)) >> (bit & 7u);
-    r->have = 56u - (uint32_t)(bit & 7u);
-}
-
-/* `n` <= 32 bits. */
-static inline uint32_t reader_take(bit_reader* r, uint32_t n) {
-    uint32_t v;
-    if (r->have < n) { /* top up to at least 56 bits */
-        uint64_t more = mcd_rd_u64(r->p + r->next);
-        r->buf |= more << r->have;
-        r->next += (63u - r->have) >> 3;
-        r->have |= 56u;
-    }
-    v = n ? (uint32_t)(r->buf & (((uint64_t)1 << n) - 1u)) : 0u;
-    r->buf >>= n;
-    r->have -= n;
-    return v;
-}
-
-static void group_read(const uint8_t* p, const track_layout* t, uint32_t g, group* G) {
-    bit_reader r;
-    uint32_t c, size = 1u << t->group_shift;
-    reader_at(&r, p + t->table, (uint64_t)g * t->entry_bits);
+static void group_head(const uint8_t* p, const track_layout* t, uint32_t g, group* G) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)g * t->entry_bits;
+    uint32_t size = 1u << t->group_shift;
     G->index = g;
     G->first = g << t->group_shift;
     G->count = t->keys - G->first < size ? t->keys - G->first : size;
-    G->gaps = reader_take(&r, t->offset_bits);
-    G->frame = reader_take(&r, t->frame_bits);
-    G->gap_width = (uint8_t)reader_take(&r, GAP_WIDTH_BITS);
+    G->gaps = mcd_read_bits(table, bit, t->offset_bits);
+    G->frame = mcd_read_bits(table, bit + t->offset_bits, t->frame_bits);
+    G->gap_width = (uint8_t)mcd_read_bits(table, bit + t->offset_bits + t->frame_bits, GAP_WIDTH_BITS);
+    G->loaded = 0;
+}
+
+/* The rest of the entry: value widths and bases, and where the values and outliers lie. */
+static void group_load(const uint8_t* p, const track_layout* t, group* G) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)G->index * t->entry_bits + t->offset_bits + t->frame_bits + GAP_WIDTH_BITS;
+    uint32_t c;
+    if (G->loaded) return;
     G->value_bits = 0;
     for (c = 0; c < t->dims; ++c) {
-        G->width[c] = (uint8_t)reader_take(&r, VALUE_WIDTH_BITS);
+        G->width[c] = (uint8_t)mcd_read_bits(table, bit + VALUE_WIDTH_BITS * c, VALUE_WIDTH_BITS);
         G->value_bits += G->width[c];
     }
+    bit += VALUE_WIDTH_BITS * t->dims;
     for (c = 0; c < t->dims; ++c) {
-        uint32_t n = t->abits[c], u = reader_take(&r, n), sign = (uint32_t)1 << (n - 1u);
-        G->base[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
+        G->base[c] = mcd_read_signed(table, bit, t->abits[c]);
+        bit += t->abits[c];
     }
     G->values = G->gaps + (G->count - 1u) * G->gap_width;
     G->outliers = G->values + G->count * G->value_bits;
+    G->loaded = 1;
 }
 
 /* Key `pos` of a group: its lattice integers (q = base + the field). */
-static void group_value(const uint8_t* p, const track_layout* t, const group* G, uint32_t pos, int32_t q[4]) {
+static void group_value(const uint8_t* p, const track_layout* t, group* G, uint32_t pos, int32_t q[4]) {
     const uint8_t* data = p + t->data;
-    uint32_t c, bit = G->values + pos * G->value_bits;
+    uint32_t c, bit;
+    group_load(p, t, G);
+    bit = G->values + pos * G->value_bits;
     if (G->value_bits <= 57u) {
         uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
         for (c = 0; c < t->dims; ++c) {
@@ -224,50 +210,51 @@ static uint32_t find_group(const uint8_t* p, const track_layout* t, uint32_t xi)
 
 /* ---------------------------------------------------------------- sampling state */
 /* Reads a track's keys in order: the group of the last key read, its position, its frame, and
- * where the next gap and the next outlier frame lie. */
+ * where the next gap and (once one escaped) the next outlier frame lie. */
+#define NO_OUTLIER UINT32_MAX
 typedef struct cursor {
     group G;
     uint32_t pos, frame, gap_bit, exc_bit;
 } cursor;
 
+/* The frame after `frame` for gap field `gap` (escaped: the group's next outlier frame). */
+static inline uint32_t next_frame(const uint8_t* p, const track_layout* t, cursor* cur, uint32_t gap, int advance) {
+    uint32_t w = cur->G.gap_width, f;
+    if (!w || gap != ((uint32_t)1 << w) - 1u) return cur->frame + gap + 1u;
+    if (cur->exc_bit == NO_OUTLIER) {
+        group_load(p, t, &cur->G);
+        cur->exc_bit = cur->G.outliers;
+    }
+    f = mcd_read_bits(p + t->data, cur->exc_bit, t->frame_bits);
+    if (advance) cur->exc_bit += t->frame_bits;
+    return f;
+}
+
 /* The cursor at key `pos` of group g (its gaps summed from the group's first key). */
 static void cursor_seek(const uint8_t* p, const track_layout* t, uint32_t g, uint32_t pos, cursor* cur) {
     const uint8_t* data = p + t->data;
-    uint32_t w, escape, j;
-    group_read(p, t, g, &cur->G);
+    uint32_t j, w;
+    group_head(p, t, g, &cur->G);
     w = cur->G.gap_width;
-    escape = ((uint32_t)1 << w) - 1u;
     cur->frame = cur->G.frame;
     cur->gap_bit = cur->G.gaps;
-    cur->exc_bit = cur->G.outliers;
+    cur->exc_bit = NO_OUTLIER;
     for (j = 0; j < pos; ++j) {
-        uint32_t gap = mcd_read_bits(data, cur->gap_bit, w);
+        cur->frame = next_frame(p, t, cur, mcd_read_bits(data, cur->gap_bit, w), 1);
         cur->gap_bit += w;
-        if (w && gap == escape) {
-            cur->frame = mcd_read_bits(data, cur->exc_bit, t->frame_bits);
-            cur->exc_bit += t->frame_bits;
-        } else {
-            cur->frame += gap + 1u;
-        }
     }
     cur->pos = pos;
 }
 
 /* Move the cursor to the next key (which exists). */
 static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur) {
-    uint32_t w = cur->G.gap_width, gap;
+    uint32_t w = cur->G.gap_width;
     if (cur->pos + 1u == cur->G.count) {
         cursor_seek(p, t, cur->G.index + 1u, 0, cur);
         return;
     }
-    gap = mcd_read_bits(p + t->data, cur->gap_bit, w);
+    cur->frame = next_frame(p, t, cur, mcd_read_bits(p + t->data, cur->gap_bit, w), 1);
     cur->gap_bit += w;
-    if (w && gap == ((uint32_t)1 << w) - 1u) {
-        cur->frame = mcd_read_bits(p + t->data, cur->exc_bit, t->frame_bits);
-        cur->exc_bit += t->frame_bits;
-    } else {
-        cur->frame += gap + 1u;
-    }
     cur->pos++;
 }
 
@@ -308,7 +295,7 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
 }
 
 /* Window slot `slot` from key `pos` of group G at `frame`. */
-static void store_key(const uint8_t* p, track_state* ts, uint32_t slot, const group* G, uint32_t pos, uint32_t frame) {
+static void store_key(const uint8_t* p, track_state* ts, uint32_t slot, group* G, uint32_t pos, uint32_t frame) {
     int32_t q[4];
     uint32_t c;
     group_value(p, &ts->L, G, pos, q);
@@ -342,13 +329,27 @@ static void set_curve(track_state* ts) {
  * holds it: the next group starts after xi). `before`: the frame of the key before. */
 static void walk_to(const uint8_t* p, const track_layout* t, cursor* cur, uint32_t xi, uint32_t* before) {
     const uint8_t* data = p + t->data;
-    uint32_t w = cur->G.gap_width, escape = ((uint32_t)1 << w) - 1u, n = cur->G.count;
-    uint32_t pos = cur->pos, frame = cur->frame, bit = cur->gap_bit, exc = cur->exc_bit, prev = frame;
+    uint32_t w = cur->G.gap_width, n = cur->G.count, escape = ((uint32_t)1 << w) - 1u;
+    uint32_t pos = cur->pos, frame = cur->frame, bit = cur->gap_bit, prev = frame;
+    if (w == 0) { /* every gap 0: keys on consecutive frames */
+        uint32_t step = xi - frame < n - 1u - pos ? xi - frame : n - 1u - pos;
+        if (step) prev = frame + step - 1u;
+        cur->pos = pos + step;
+        cur->frame = frame + step;
+        *before = prev;
+        return;
+    }
     while (pos + 1u < n) {
-        uint32_t gap = mcd_read_bits(data, bit, w), next, wide = w && gap == escape;
-        next = wide ? mcd_read_bits(data, exc, t->frame_bits) : frame + gap + 1u;
-        if (next > xi) break;
-        if (wide) exc += t->frame_bits;
+        uint32_t gap = mcd_read_bits(data, bit, w), next;
+        if (gap == escape) {
+            cur->frame = frame;
+            next = next_frame(p, t, cur, gap, 0);
+            if (next > xi) break;
+            cur->exc_bit += t->frame_bits;
+        } else {
+            next = frame + gap + 1u;
+            if (next > xi) break;
+        }
         bit += w;
         prev = frame;
         frame = next;
@@ -357,7 +358,6 @@ static void walk_to(const uint8_t* p, const track_layout* t, cursor* cur, uint32
     cur->pos = pos;
     cur->frame = frame;
     cur->gap_bit = bit;
-    cur->exc_bit = exc;
     *before = prev;
 }
 
@@ -530,7 +530,8 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t 
     for (g = 0; g < t->groups; ++g) {
         group G;
         uint32_t escapes = 0, frame, w;
-        group_read(p, t, g, &G);
+        group_head(p, t, g, &G);
+        group_load(p, t, &G);
         /* Groups lie back to back from the start of the data area, each within it. */
         if (G.gaps != bit) return MCD_ERROR_MALFORMED;
         for (c = 0; c < t->dims; ++c)
