@@ -7,16 +7,8 @@ cd "$(dirname "$0")/.."
 need_apt=()
 command -v clang >/dev/null || need_apt+=(clang)
 [ -n "$(ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a 2>/dev/null)" ] || need_apt+=(libclang-rt-14-dev)
-if [ ${#need_apt[@]} -gt 0 ]; then
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-    echo "== installing ${need_apt[*]} (apt)"
-    apt-get update -qq >/dev/null
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
-  else
-    echo "!! missing ${need_apt[*]} and cannot install them (not root or no apt)" >&2
-    exit 1
-  fi
-fi
+source tests/apt_need.sh
+apt_need "${need_apt[@]}" || exit 1
 
 failed=0
 step() { echo; echo "== $*"; }
