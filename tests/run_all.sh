@@ -25,6 +25,12 @@ make -s -C runtime_c platforms || failed=1
 step "Python: encoder, binding, CLI, cross-checks with the C runtime"
 .venv/bin/python -m pytest -q -ra tests || failed=1
 
+step "Web: the runtime in wasm (node tests against the native runtime), the viewer in headless Chromium"
+web_fixtures=$(mktemp -d)
+FIXTURES="$web_fixtures" bindings/web/run_tests.sh || failed=1
+FIXTURES="$web_fixtures" viewer/run_tests.sh || failed=1
+rm -rf "$web_fixtures"
+
 if [ -x bindings/run_engine_tests.sh ]; then
   step "Engine bindings: C# (mono NUnit), Godot 3 headless, GDExtension build"
   bindings/run_engine_tests.sh || failed=1

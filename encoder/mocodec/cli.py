@@ -1,4 +1,4 @@
-"""The ``mocodec`` command line: encode, decode, info, eval, demo.
+"""The ``mocodec`` command line: encode, decode, info, eval, view, demo.
 
 Every error a user can cause (a bad BVH, a tolerance that cannot be met, a corrupted asset)
 is printed as one line starting with ``mocodec: error:`` and exits with status 1; usage
@@ -25,6 +25,7 @@ examples:
   mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
   mocodec info moves.mcd
   mocodec eval walk.bvh --tolerance 0.1 --json
+  mocodec view moves.mcd --original walk.bvh run.bvh -o moves.html
 
 The tolerance is a promise: the largest world-space position error of any joint or end site
 on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
@@ -355,6 +356,34 @@ def _codec_name(codec_id: int) -> str:
     return codec.name if codec else str(codec_id)
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    """One self-contained page: the asset decoded in the page by the wasm runtime, the originals."""
+    from .runtime import Asset, Result, RuntimeResultError, validate
+    from .view import build_page, match_originals, read_motions, serve_page
+
+    data = _read_asset(args.asset)
+    originals = []
+    status = validate(data)
+    if status != Result.OK:
+        print(f"mocodec: warning: {args.asset}: {RuntimeResultError(int(status))}; the page shows this error"
+              + (" and compares no original" if args.original else ""), file=sys.stderr)
+    else:
+        asset = Asset(data)
+        clips = [(c.name, c.frame_count, [n.name for n in asset.nodes(c.skeleton)]) for c in asset.clips]
+        motions = [(str(p), m) for p in args.original or [] for m in read_motions(p)]
+        originals = match_originals(motions, clips)
+    html = build_page(data, Path(args.asset).name, originals)
+    if args.serve:
+        serve_page(html, args.port)
+        return 0
+    out = Path(args.output) if args.output else Path(args.asset).with_suffix(".html")
+    out.write_text(html, encoding="utf-8")
+    if not args.quiet:
+        compared = f"{len(originals)} of {len(clips)} clips compared with an original" if status == Result.OK else "no clip shown"
+        print(f"wrote {out} ({len(html.encode()):,} bytes, opens with no network; {compared})")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Encode the bundled sample clips, decode them through the C runtime, report."""
     samples = Path(__file__).resolve().parent / "samples"
@@ -452,6 +481,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_encode_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT.mcd", help="also write the asset")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("view", help="a page that plays an asset beside the original, with its errors",
+                       description="Write one self-contained HTML page (no network needed to open it) "
+                                   "that decodes the asset in the browser with the runtime compiled to "
+                                   "WebAssembly, shows the original and the decoded skeleton with each "
+                                   "joint coloured by its error, a timeline, the clip list, the figures "
+                                   "and the error per frame; or serve it on localhost.")
+    p.add_argument("asset", metavar="ASSET.mcd")
+    p.add_argument("--original", nargs="+", metavar="FILE",
+                   help="the motions the asset was encoded from (BVH; each matched to the clip of its name)")
+    p.add_argument("-o", "--output", metavar="VIEW.html", help="page to write (default: ASSET.html)")
+    p.add_argument("--serve", action="store_true", help="serve the page on localhost instead of writing it")
+    p.add_argument("--port", type=int, default=0, help="port for --serve (default: any free one)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "

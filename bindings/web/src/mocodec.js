@@ -45,7 +45,9 @@ async function compile(source) {
   }
   const url = source instanceof URL ? source : new URL(String(source), import.meta.url);
   if (url.protocol === "file:") {
-    const { readFile } = await import("node:fs/promises");
+    // node (its fetch reads no file: URLs); a computed name keeps browser bundlers from resolving it.
+    const fsModule = "node:fs/promises";
+    const { readFile } = await import(fsModule);
     return WebAssembly.compile(await readFile(url));
   }
   const response = await fetch(url);

@@ -5,7 +5,8 @@
 For every codec of the encoder's registry: one asset of two short sample clips
 (``<codec>.mcd``) and what the native C runtime (the Python binding) says about it
 (``<codec>.json``: clip and node infos, and poses at whole, fractional, clamped and looped times,
-local and world, cubic and nearest). A codec that cannot be encoded here (its runtime side is
+local and world, cubic and nearest; and the encoder's error figures per clip, measured through
+the native runtime). A codec that cannot be encoded here (its runtime side is
 not in this build) is listed in ``skipped.json`` with the reason, for the tests to print. The
 clips' originals are written as BVH (``<clip>.bvh``) for ``mocodec view --original``.
 """
@@ -88,7 +89,9 @@ def main(out: Path) -> int:
             print(f"make_fixtures: SKIPPED codec {codec}: {skipped[codec]}", file=sys.stderr)
             continue
         (out / f"{codec}.mcd").write_bytes(data)
-        (out / f"{codec}.json").write_text(json.dumps({"codec": codec, **describe(asset)}))
+        errors = {c.name: {"max": c.error.max_cm, "p99": c.error.p99_cm, "mean": c.error.mean_cm}
+                  for c in result.clips}
+        (out / f"{codec}.json").write_text(json.dumps({"codec": codec, "errors": errors, **describe(asset)}))
         print(f"make_fixtures: {codec}: {len(data)} bytes", file=sys.stderr)
     (out / "skipped.json").write_text(json.dumps(skipped, indent=1))
     return 0
