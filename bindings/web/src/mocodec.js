@@ -227,14 +227,32 @@ export class Instance {
   constructor(asset, slot) {
     this.asset = asset;
     this._slot = slot;
+    this._view = null; // the pose slot as floats; made again after the memory grows
   }
 
   /**
    * The pose of `clip` (index or name) at `time` seconds: node_count x 10 floats (rotation x y z w,
    * translation x y z, scale x y z), local unless `world`. Written into `out` when given
-   * (at least node_count * 10 floats), else into a new Float32Array.
+   * (at least node_count * 10 floats; then nothing is allocated), else into a new Float32Array.
    */
   sample(clip, time, options = {}, out) {
+    const flags = (options.world ? SAMPLE_FLAGS.world : 0) | (options.loop ? SAMPLE_FLAGS.loop : 0)
+      | (options.nearest ? SAMPLE_FLAGS.nearest : 0) | (options.contacts ? SAMPLE_FLAGS.contacts : 0);
+    return this._sample(clip, time, flags, out);
+  }
+
+  /** Local transforms (parent-relative). */
+  local(clip, time, options = {}, out) { return this._sample(clip, time, this._flags(options) & ~SAMPLE_FLAGS.world, out); }
+
+  /** Model-space transforms. */
+  world(clip, time, options = {}, out) { return this._sample(clip, time, this._flags(options) | SAMPLE_FLAGS.world, out); }
+
+  _flags(options) {
+    return (options.loop ? SAMPLE_FLAGS.loop : 0) | (options.nearest ? SAMPLE_FLAGS.nearest : 0)
+      | (options.contacts ? SAMPLE_FLAGS.contacts : 0);
+  }
+
+  _sample(clip, time, flags, out) {
     if (!this._slot) throw new Error("this instance was disposed");
     const info = this.asset.clip(clip);
     const n = info.nodeCount * TRANSFORM_FLOATS;
@@ -242,21 +260,17 @@ export class Instance {
     else if (!(out instanceof Float32Array) || out.length < n) {
       throw new MocodecError(9, "output buffer too small", `sample needs a Float32Array of ${n} floats`);
     }
-    const flags = (options.world ? SAMPLE_FLAGS.world : 0) | (options.loop ? SAMPLE_FLAGS.loop : 0)
-      | (options.nearest ? SAMPLE_FLAGS.nearest : 0) | (options.contacts ? SAMPLE_FLAGS.contacts : 0);
     const mem = this.asset._mem;
     const code = mem.exports.mcd_sample(this.asset._struct, info.index, time, flags, this._slot.pose,
       info.nodeCount, this._slot.scratch);
     if (code !== 0) check(this.asset._runtime, code, "mcd_sample");
-    out.set(new Float32Array(mem.memory.buffer, this._slot.pose, n));
+    if (this._view === null || this._view.buffer !== mem.memory.buffer) {
+      this._view = new Float32Array(mem.memory.buffer, this._slot.pose, this.asset._maxNodes * TRANSFORM_FLOATS);
+    }
+    const view = this._view;
+    for (let k = 0; k < n; k++) out[k] = view[k];
     return out;
   }
-
-  /** Local transforms (parent-relative). */
-  local(clip, time, options = {}, out) { return this.sample(clip, time, { ...options, world: false }, out); }
-
-  /** Model-space transforms. */
-  world(clip, time, options = {}, out) { return this.sample(clip, time, { ...options, world: true }, out); }
 
   /** Give the scratch back to the asset for the next instance. */
   dispose() {
