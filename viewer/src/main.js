@@ -235,6 +235,13 @@ $("prev").addEventListener("click", () => step(-1));
 $("next").addEventListener("click", () => step(1));
 $("scrub").addEventListener("input", (e) => { pause(); seek(Number(e.target.value)); });
 $("side-by-side").addEventListener("change", (e) => { view.sideBySide = e.target.checked; seek(time); });
+$("follow").addEventListener("change", (e) => {
+  view.follow = e.target.checked;
+  if (!current) return;
+  const t = time; // the camera is fitted again; the moment stays
+  selectClip(current.clip.index);
+  seek(t);
+});
 window.addEventListener("keydown", (e) => {
   if (!current || e.target instanceof HTMLInputElement && e.target.type !== "range") return;
   if (e.key === " ") { e.preventDefault(); playing ? pause() : play(); }

@@ -16,7 +16,7 @@ export class ErrorPlot {
     canvas.addEventListener("pointerdown", (e) => { dragging = true; canvas.setPointerCapture(e.pointerId); seek(e); });
     canvas.addEventListener("pointermove", (e) => { if (dragging) seek(e); });
     canvas.addEventListener("pointerup", () => { dragging = false; });
-    this._left = 44;
+    this._left = 60;
     this._right = 8;
     new ResizeObserver(() => this.draw()).observe(canvas);
   }

@@ -87,7 +87,10 @@ export class View {
     this.decoded = null;
     this.original = null;
     this.sideBySide = false;
+    this.follow = true; // the camera keeps the root in view as the clip travels
     this.spacing = 0;
+    this._root = new Vector3();
+    this._step = new Vector3();
     new ResizeObserver(() => this.resize()).observe(canvas);
   }
 
@@ -106,7 +109,10 @@ export class View {
     this.grid.position.set((bounds.min.x + bounds.max.x) / 2, bounds.min.y, (bounds.min.z + bounds.max.z) / 2);
     this.scene.add(this.grid);
     const centre = new Vector3().addVectors(bounds.min, bounds.max).multiplyScalar(0.5);
-    const distance = Math.max(height * 2.6, Math.hypot(size.x, size.z) * 1.3);
+    this.centreY = centre.y;
+    this.height = height;
+    this._root.set(NaN, NaN, NaN);
+    const distance = Math.max(height * 2.6, this.follow ? 0 : Math.hypot(size.x, size.z) * 1.3);
     this.controls.target.copy(centre);
     this.camera.position.set(centre.x + distance * 0.35, centre.y + distance * 0.25, centre.z + distance);
     this.camera.near = distance / 1000;
@@ -118,10 +124,21 @@ export class View {
   /** One moment: decoded and original positions, the decoded joints' errors (cm). */
   show(decoded, original, errors, scaleCm) {
     const shift = this.sideBySide ? this.spacing / 2 : 0;
+    if (this.follow) this._follow(decoded[0], decoded[2]);
     this.decoded.update(decoded, shift);
     if (this.original && original) this.original.update(original, -shift);
     if (errors) this.decoded.colour(errors, scaleCm);
     this.render();
+  }
+
+  // Move target and camera with the first root over the floor (the view's angle is the user's).
+  _follow(x, z) {
+    const from = Number.isNaN(this._root.x) ? this.controls.target : this._root;
+    const d = this._step.set(x - from.x, 0, z - from.z);
+    this.controls.target.add(d);
+    this.camera.position.add(d);
+    this._root.set(x, 0, z);
+    this.controls.update();
   }
 
   resize() {
