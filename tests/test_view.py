@@ -106,3 +106,34 @@ def test_damaged_asset_still_makes_a_page_that_says_so(encoded, tmp_path, capsys
     err = capsys.readouterr().err
     assert "warning" in err and "checksum" in err and "compares no original" in err
     assert page_data((tmp_path / "bad.html").read_text())["originals"] == {}
+
+
+def test_originals_from_any_reader_are_taken_by_node_name(sample_paths):
+    """A motion whose skeleton lists the nodes in another order, with one node more (as a reader
+    of another format may give it), is reduced to the clip's nodes in the clip's order."""
+    from mocodec.motion import Motion, Skeleton
+    from mocodec.view import match_originals
+
+    m = read_bvh(sample_paths[0]).slice(0, 5)
+    sk = m.skeleton
+    extra = Skeleton(names=sk.names + ["Extra"], parents=list(sk.parents) + [0],
+                     offsets=np.vstack([sk.offsets, [[1.0, 2.0, 3.0]]]), channels=sk.channels + [()],
+                     is_end_site=list(sk.is_end_site) + [True])
+    rot = np.concatenate([m.rotations, np.tile([0.0, 0.0, 0.0, 1.0], (5, 1, 1))], axis=1)
+    trans = np.concatenate([m.translations, np.tile([1.0, 2.0, 3.0], (5, 1, 1))], axis=1)
+    other = Motion(extra, rot, trans, m.frame_time, "walk")
+    clip_nodes = list(reversed(sk.names))
+    (o,) = match_originals([("walk.any", other)], [("walk", 5, clip_nodes)])
+    expected = world_positions(m)[:, ::-1]
+    np.testing.assert_allclose(o.positions, expected, rtol=0, atol=1e-4)
+    assert o.positions.dtype == np.float32 and o.source == "walk.any"
+
+
+def test_help_names_view_and_sweep(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert "view" in text and "--sweep" in text
+    with pytest.raises(SystemExit):
+        main(["view", "--help"])
+    assert "--original" in capsys.readouterr().out
