@@ -30,7 +30,7 @@ test: venv
 VIEW_STATIC := encoder/mocodec/view/static
 web:
 	$(MAKE) -C runtime_c wasm
-	cp runtime_c/build/wasm/mocodec.wasm $(VIEW_STATIC)/mocodec.wasm
+	install -m 644 runtime_c/build/wasm/mocodec.wasm $(VIEW_STATIC)/mocodec.wasm
 	cd viewer && { [ -d node_modules ] || npm ci --no-audit --no-fund --silent; } && node build.mjs
 
 bench: venv
