@@ -171,8 +171,9 @@ class Asset:
         return f"{self.codec}:{self.tolerance_cm:g}"
 
 
-def ensure_asset(codec: str, tol: float, paths: list[Path], cm_per_unit: float, data_key: str) -> Asset:
-    """The cached asset for (codec, tolerance, clip set, encoder), encoded now if missing."""
+def ensure_asset(codec: str, tol: float, paths: list[Path], cm_per_unit: float, data_key: str) -> Asset | str:
+    """The cached asset for (codec, tolerance, clip set, encoder), encoded now if missing; or,
+    when ``mocodec eval`` fails, its last line of error (the bench goes on without it)."""
     stem = f"{codec}_{tol:g}cm_{data_key}_{encoder_key()}"
     mcd, info = CACHE / f"{stem}.mcd", CACHE / f"{stem}.json"
     if not (mcd.exists() and info.exists()):
@@ -188,8 +189,10 @@ def ensure_asset(codec: str, tol: float, paths: list[Path], cm_per_unit: float, 
         wall = time.perf_counter() - started
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if r.returncode != 0:
-            last = (r.stderr.strip().splitlines() or ["no message"])[-1]
-            raise SystemExit(f"engine_bench: mocodec eval --codec {codec} --tolerance {tol:g} failed: {last}")
+            Path(str(mcd) + ".tmp").unlink(missing_ok=True)
+            last = (r.stderr.strip().splitlines() or [f"exit status {r.returncode}"])[-1]
+            print(f"engine_bench: WARNING: {codec} at {tol:g} cm left out: mocodec eval failed: {last}", file=sys.stderr)
+            return last
         report = json.loads(r.stdout)
         record = {
             "codec": codec, "tolerance_cm": tol, "encoder": f"mocodec {ENCODER_VERSION}", "encoder_key": encoder_key(),
@@ -270,6 +273,8 @@ def markdown(rep: dict) -> str:
          f"Load average before the timed run: {_load(env['load_before'])}; after: {_load(env['load_after'])}.", ""]
     if not acl["available"]:
         L += [f"**ACL 2.1 was not measured: {acl['reason']}.** mocodec's figures only.", ""]
+    for label, why in rep.get("left_out", {}).items():
+        L += [f"**`{label}` left out: `mocodec eval` failed: {why}**", ""]
 
     has_acl = acl["available"]
     L += ["## Size, and the bytes an engine holds", "",
@@ -321,7 +326,7 @@ def markdown(rep: dict) -> str:
         t = s["times_us"]
         if s["subject"] == "acl":
             full = {"median": t["validate"]["median"] + t["init"]["median"]}
-            row = [f"ACL {s['target_cm']:g} cm", f"{_us(full)} (is_valid {_us(t['validate'])} + open)", "—",
+            row = [f"ACL {s['target_cm']:g} cm", f"{_us(full)} (`is_valid(true)` + open)", "—",
                    f"{_us(t['init'])} (all {s['clips']} clips)", "(in open)"]
         else:
             row = [f"`{s['subject']}`", _us(t["open"]), _us(t["open_no_crc"]), _us(t.get("open_prevalidated")),
@@ -418,9 +423,14 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     wanted = parse_assets(args.assets)
     data_key = fingerprint(paths, args.cm_per_unit)
-    assets = [ensure_asset(c, t, paths, args.cm_per_unit, data_key) for c, t in wanted]
+    made = {(c, t): ensure_asset(c, t, paths, args.cm_per_unit, data_key) for c, t in wanted}
+    assets = [a for a in made.values() if isinstance(a, Asset)]
+    left_out = {f"{c}:{t:g}": why for (c, t), why in made.items() if isinstance(why, str)}
     if args.encode_only:
-        return 0
+        return 0 if not left_out else 1
+    if not assets:
+        print("engine_bench: no asset to measure", file=sys.stderr)
+        return 1
 
     acl_reason = ("--no-acl" if args.no_acl else
                   None if all(p.is_dir() for p in ACL_INCLUDES) else f"{ACL_INCLUDES[0].parent.parent} is absent")
@@ -452,6 +462,7 @@ def main(argv: list[str] | None = None) -> int:
                         "cpu": _cpu_model(), "compiler": _compiler()},
         "assets": [{"label": a.label, "codec": a.codec, "tolerance_cm": a.tolerance_cm, "file": a.path.name,
                     "encode": a.encode} for a in assets],
+        "left_out": left_out,
         "run": json.loads(raw.read_text()),
     }
     raw.unlink()
@@ -479,4 +490,9 @@ def _compiler() -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except subprocess.CalledProcessError as exc:  # the tool has said why on stderr already
+        print(f"engine_bench: `{' '.join(map(str, exc.cmd[:5]))} ...` failed with exit status {exc.returncode}",
+              file=sys.stderr)
+        sys.exit(1)
