@@ -635,11 +635,20 @@ void bind(AclSubject& a, uint32_t instance, uint32_t clip) {
     a.bound[instance] = clip;
 }
 
-// Local to world in place, parents first (ACL has no such step; this is ours).
+// Local to world in place, parents first (ACL has no such step; this is ours). It composes what
+// MCD_SAMPLE_WORLD composes: rotation and translation, and from format 2 on scale too.
+#if MCD_FORMAT_MAJOR >= 2
+constexpr const char* kAclCompose = "rtm::qvv_mul";
+inline rtm::qvvf compose(const rtm::qvvf& local, const rtm::qvvf& parent) { return rtm::qvv_mul(local, parent); }
+#else
+constexpr const char* kAclCompose = "rtm::qvv_mul_no_scale";
+inline rtm::qvvf compose(const rtm::qvvf& local, const rtm::qvvf& parent) { return rtm::qvv_mul_no_scale(local, parent); }
+#endif
+
 inline void acl_to_world(const std::vector<int32_t>& parents) {
     const uint32_t n = uint32_t(parents.size());
     for (uint32_t i = 0; i < n; ++i)
-        if (parents[i] >= 0) g_acl_pose[i] = rtm::qvv_mul_no_scale(g_acl_pose[i], g_acl_pose[parents[i]]);
+        if (parents[i] >= 0) g_acl_pose[i] = compose(g_acl_pose[i], g_acl_pose[parents[i]]);
 }
 
 PassTime pass_acl(AclSubject& a, const std::vector<Step>& steps, const std::vector<int32_t>* parents, bool world) {
@@ -934,6 +943,7 @@ int cmd_run(int argc, char** argv) {
     j.kvb("available", no_acl_reason.empty());
     j.kv("reason", no_acl_reason);
     j.kv("context_bytes", double(sizeof(Context)));
+    j.kv("world_compose", kAclCompose);
     j.kv("compress_reps", compress_reps);
     j.kv("shell_units", shell);
     j.key("targets"); j.open('[');

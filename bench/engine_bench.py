@@ -347,7 +347,8 @@ def markdown(rep: dict) -> str:
           f"scratch or ACL context each. Random: as many uniform random times as frames per clip (seed "
           f"{run['seed']}, the same for every subject). Local: ACL `seek` + `decompress_tracks` (rotation, "
           "translation, scale) vs `mcd_sample` into `mcd_transform`. World: `mcd_sample` with `MCD_SAMPLE_WORLD` vs "
-          "ACL's local decode then our own local-to-world (`rtm::qvv_mul_no_scale`, parents first).", "",
+          "ACL's local decode then our own local-to-world (" + f"`{acl.get('world_compose', 'not measured')}`, "
+          "parents first: what `MCD_SAMPLE_WORLD` composes).", "",
           "| asset | access | local µs | ACL local µs | local / ACL | world µs | ACL world µs | world / ACL |"
           if has_acl else "| asset | access | local µs | world µs |",
           "|---|---|---|---|---|---|---|---|" if has_acl else "|---|---|---|---|"]
