@@ -268,8 +268,9 @@ def markdown(rep: dict) -> str:
     acl_at = {t["target_cm"]: t for t in acl.get("targets", [])}
     L = [f"# engine_bench, {rep['date']}", "",
          f"{run['clips']} clips, {run['frames']:,} frames from `{rep['data']}` (cm = file units × {run['cm_per_unit']:g}). "
-         f"mocodec runtime (format {run['runtime']['format_major']}) compiled with `{run['runtime']['cflags']}` "
-         f"like ACL (its own Makefile uses `-O2`). CPU: {env['cpu']}; {env['compiler']}.",
+         f"mocodec runtime (format {run['runtime']['format_major']}) compiled with `{run['runtime']['cflags']}`"
+         + (" like ACL" if run["runtime"]["cflags"] == " ".join(ACL_FLAGS) else f", ACL with `{' '.join(ACL_FLAGS)}`")
+         + f" (the runtime's own Makefile uses `-O2`). CPU: {env['cpu']}; {env['compiler']}.",
          f"Load average before the timed run: {_load(env['load_before'])}; after: {_load(env['load_after'])}.", ""]
     if not acl["available"]:
         L += [f"**ACL 2.1 was not measured: {acl['reason']}.** mocodec's figures only.", ""]
