@@ -130,13 +130,25 @@ def fingerprint(paths: list[Path], cm_per_unit: float) -> str:
     return h.hexdigest()[:10]
 
 
-def encoder_key() -> str:
-    """Short hash of the encoder's Python sources: an asset is re-encoded when any of them changes."""
+def source_key(files: list[Path]) -> str:
+    """Short hash of some of the encoder's sources (names and bytes)."""
     h = hashlib.sha256(ENCODER_VERSION.encode())
     root = REPO / "encoder" / "mocodec"
-    for p in sorted(root.rglob("*.py")):
+    for p in sorted(files):
         h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes())
     return h.hexdigest()[:10]
+
+
+def encoder_key() -> str:
+    """Every Python source of the encoder: an asset is re-encoded when any of them changes."""
+    return source_key(list((REPO / "encoder" / "mocodec").rglob("*.py")))
+
+
+def reader_key() -> str:
+    """What the clip dump (ACL's input and the error reference) depends on: the BVH reader and
+    the motion model."""
+    root = REPO / "encoder" / "mocodec"
+    return source_key([*(root / "io").glob("*.py"), *(root / n for n in ("motion.py", "rotations.py", "kinematics.py"))])
 
 
 def write_dump(motions: list[Motion], cm_per_unit: float, path: Path) -> None:
@@ -207,9 +219,9 @@ def ensure_asset(codec: str, tol: float, paths: list[Path], cm_per_unit: float, 
     return Asset(codec, tol, mcd, json.loads(info.read_text()))
 
 
-def ensure_acl_precisions(exe: Path, dump: Path, tol: float, data_key: str, shell: float) -> Path:
+def ensure_acl_precisions(exe: Path, dump: Path, tol: float, dump_key: str, shell: float) -> Path:
     """Per clip ACL precisions for a max error of ``tol`` cm (the driver's ``tune``), cached."""
-    out = CACHE / f"acl_{tol:g}cm_shell{shell:g}_{data_key}.csv"
+    out = CACHE / f"acl_{tol:g}cm_shell{shell:g}_{dump_key}.csv"
     if not out.exists():
         print(f"ACL: searching per clip precisions for max error <= {tol:g} cm (cached as {out.name}) ...",
               file=sys.stderr)
@@ -440,13 +452,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"engine_bench: WARNING: ACL 2.1 skipped ({acl_reason}); mocodec's figures only", file=sys.stderr)
     exe = build_driver(args.runtime_flags.split(), acl=acl_reason is None)
     CACHE.mkdir(parents=True, exist_ok=True)
-    dump = CACHE / f"clips_{data_key}.bin"
+    dump_key = f"{data_key}_{reader_key()}"  # the dump and ACL's precisions depend on the clips as read
+    dump = CACHE / f"clips_{dump_key}.bin"
     if not dump.exists():
+        for old in CACHE.glob(f"clips_{data_key}_*.bin"):  # 100 MB each for the dev set
+            old.unlink()
         write_dump([read_bvh(p) for p in paths], args.cm_per_unit, dump)
     cmd = [str(exe), "run", str(dump), "--rounds", str(args.rounds)]
     if acl_reason is None:
         for tol in sorted({a.tolerance_cm for a in assets}, reverse=True):
-            cmd += ["--acl", f"{tol:g}={ensure_acl_precisions(exe, dump, tol, data_key, args.shell)}"]
+            cmd += ["--acl", f"{tol:g}={ensure_acl_precisions(exe, dump, tol, dump_key, args.shell)}"]
     else:
         cmd += ["--no-acl", acl_reason]
     for a in assets:
