@@ -258,18 +258,25 @@ struct Step {
     uint32_t instance;
 };
 
-struct Mode {
-    std::string key, label;
-    std::vector<Step>* steps;
-    bool world;
-};
-
 struct Workloads {
     std::vector<Step> sequential, tick, random;
     std::vector<uint32_t> tick_clips;
     uint32_t ticks = 0;
-    std::vector<Mode> modes;
 };
+
+struct Mode {
+    const char* key;
+    const char* label;
+    std::vector<Step> Workloads::*steps;  // a member pointer: stays right when Workloads moves
+    bool world;
+};
+
+const Mode kModes[] = {{"seq_local", "sequential, local", &Workloads::sequential, false},
+                       {"tick_local", "game tick, local", &Workloads::tick, false},
+                       {"random_local", "random, local", &Workloads::random, false},
+                       {"seq_world", "sequential, world", &Workloads::sequential, true},
+                       {"tick_world", "game tick, world", &Workloads::tick, true},
+                       {"random_world", "random, world", &Workloads::random, true}};
 
 // Clip lengths as (frames, rate) per clip index.
 Workloads make_workloads(const std::vector<std::pair<uint32_t, float>>& clips) {
@@ -295,12 +302,6 @@ Workloads make_workloads(const std::vector<std::pair<uint32_t, float>>& clips) {
             const double t = duration > 0 ? std::fmod(j / kTickHz, duration) : 0.0;
             w.tick.push_back({c, float(t), uint32_t(1 + k)});
         }
-    w.modes = {{"seq_local", "sequential, local", &w.sequential, false},
-               {"tick_local", "game tick, local", &w.tick, false},
-               {"random_local", "random, local", &w.random, false},
-               {"seq_world", "sequential, world", &w.sequential, true},
-               {"tick_world", "game tick, world", &w.tick, true},
-               {"random_world", "random, world", &w.random, true}};
     return w;
 }
 
@@ -890,20 +891,21 @@ int cmd_run(int argc, char** argv) {
     for (size_t k = 0; k < acl.size(); ++k) subjects.push_back({int(k), -1});
 #endif
     for (size_t k = 0; k < mcd.size(); ++k) subjects.push_back({-1, int(k)});
-    const size_t ns = subjects.size(), nm = w.modes.size();
+    const size_t ns = subjects.size(), nm = sizeof kModes / sizeof kModes[0];
     std::vector<std::vector<std::vector<PassTime>>> times(nm, std::vector<std::vector<PassTime>>(ns));
     for (int r = -1; r < rounds; ++r) {
         std::fprintf(stderr, r < 0 ? "warm-up round\n" : "round %d of %d\n", r + 1, rounds);
         for (size_t mi = 0; mi < nm; ++mi) {
-            const Mode& mode = w.modes[mi];
+            const Mode& mode = kModes[mi];
+            const std::vector<Step>& steps = w.*mode.steps;
             for (size_t j = 0; j < ns; ++j) {
                 const size_t si = (j + size_t(std::max(r, 0)) + mi) % ns;  // rotate the order
                 PassTime t;
 #if MCD_BENCH_ACL
-                if (subjects[si].acl >= 0) t = pass_acl(*acl[subjects[si].acl], *mode.steps, parents.data(), mode.world);
+                if (subjects[si].acl >= 0) t = pass_acl(*acl[subjects[si].acl], steps, parents.data(), mode.world);
                 else
 #endif
-                    t = pass_mcd(*mcd[subjects[si].mcd], *mode.steps, mode.world);
+                    t = pass_mcd(*mcd[subjects[si].mcd], steps, mode.world);
                 if (r >= 0) times[mi][si].push_back(t);
             }
         }
@@ -934,8 +936,9 @@ int cmd_run(int argc, char** argv) {
     j.close(']');
     j.close('}');
     j.key("modes"); j.open('[');
-    for (const Mode& m : w.modes) {
-        j.open('{'); j.kv("key", m.key); j.kv("label", m.label); j.kv("poses", double(m.steps->size())); j.close('}');
+    for (const Mode& m : kModes) {
+        j.open('{'); j.kv("key", std::string(m.key)); j.kv("label", std::string(m.label));
+        j.kv("poses", double((w.*m.steps).size())); j.close('}');
     }
     j.close(']');
     j.key("acl"); j.open('{');
@@ -1021,7 +1024,7 @@ int cmd_run(int argc, char** argv) {
                 wall.push_back(times[mi][si][r].wall_us);
                 if (ref >= 0) ratio.push_back(times[mi][si][r].cpu_us / times[mi][size_t(ref)][r].cpu_us);
             }
-            j.key(w.modes[mi].key.c_str()); j.open('{');
+            j.key(kModes[mi].key); j.open('{');
             j.summary("cpu_us", cpu); j.summary("wall_us", wall); j.array("per_round_cpu_us", cpu);
             if (ref >= 0) j.summary("ratio", ratio);
             j.close('}');
@@ -1057,7 +1060,7 @@ int cmd_speed(int argc, char** argv) {
         frames += info.frame_count;
     }
     Workloads w = make_workloads(lengths);
-    const struct { const char* name; std::vector<Step>* steps; bool world; } modes[4] = {
+    const struct { const char* name; const std::vector<Step>* steps; bool world; } modes[4] = {
         {"local-seq", &w.sequential, false}, {"local-rand", &w.random, false},
         {"world-seq", &w.sequential, true}, {"world-rand", &w.random, true}};
     double median[4] = {NAN, NAN, NAN, NAN};
