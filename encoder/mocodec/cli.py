@@ -1,4 +1,4 @@
-"""The ``mocodec`` command line: encode, decode, info, eval, demo.
+"""The ``mocodec`` command line: encode, decode, info, eval, view, demo.
 
 Every error a user can cause (a bad BVH, a tolerance that cannot be met, a corrupted asset)
 is printed as one line starting with ``mocodec: error:`` and exits with status 1; usage
@@ -25,6 +25,8 @@ examples:
   mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
   mocodec info moves.mcd
   mocodec eval walk.bvh --tolerance 0.1 --json
+  mocodec eval walk.bvh --sweep 0.1 0.5 1 2 --codecs rma spline --plot curve.html
+  mocodec view moves.mcd --original walk.bvh run.bvh -o moves.html
 
 The tolerance is a promise: the largest world-space position error of any joint or end site
 on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
@@ -244,7 +246,52 @@ def cmd_encode(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Size against error of one or more codecs over the tolerances of --sweep."""
+    from .sweep import points_json, run_sweep, sweep_html, sweep_png
+
+    if args.output:
+        raise CliError("--sweep writes many assets' figures, not one asset: drop -o (use --plot FILE)")
+    names = args.codecs or [args.codec]
+    unknown = [n for n in names if n not in codecs.available()]
+    if unknown:
+        raise CliError(f"unknown codec {unknown[0]!r} (codecs: {', '.join(codecs.available())})")
+    if any(not t > 0 for t in args.sweep):
+        raise CliError("--sweep tolerances must be positive centimetres")
+    plot = Path(args.plot or "sweep.html")
+    if plot.suffix.lower() not in (".html", ".png"):
+        raise CliError(f"{plot}: --plot writes .html or .png")
+    paths = _expand_inputs(args.inputs)
+    motions, units = _load(paths, args, args.quiet or args.json)
+    progress = _progress(len(names) * len(args.sweep), not args.quiet and not args.json)
+    points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress)
+    frames = sum(m.frame_count for m in motions)
+    description = (f"{len(motions)} clip(s), {frames:,} frames ({', '.join(m.name for m in motions[:6])}"
+                   f"{', ...' if len(motions) > 6 else ''}); codecs {', '.join(names)}; tolerances "
+                   f"{', '.join(f'{t:g}' for t in sorted(args.sweep))} cm; measured through the C runtime.")
+    if plot.suffix.lower() == ".png":
+        sweep_png(points, description, plot)
+    else:
+        plot.write_text(sweep_html(points, description), encoding="utf-8")
+    if args.json:
+        print(json.dumps({"plot": str(plot), "points": points_json(points)}, indent=2))
+        return 0
+    print(f"  {'codec':<12} {'tol cm':>7} {'bytes':>10} {'ratio':>7} {'max cm':>8} {'p99 cm':>8} {'mean cm':>8}")
+    for p in points:
+        if p.failed:
+            print(f"  {p.codec:<12} {p.tolerance_cm:>7g}  not met: {p.failed}")
+        else:
+            print(f"  {p.codec:<12} {p.tolerance_cm:>7g} {p.asset_bytes:>10,} {p.ratio_bvh:>7.1f} "
+                  f"{p.max_cm:>8.4f} {p.p99_cm:>8.4f} {p.mean_cm:>8.4f}")
+    print(f"wrote {plot}")
+    return 0
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.sweep:
+        return cmd_sweep(args)
+    if args.codecs or args.plot:
+        raise CliError("--codecs and --plot go with --sweep")
     motions, result = _encode(args)
     if args.output:
         Path(args.output).write_bytes(result.asset)
@@ -355,6 +402,34 @@ def _codec_name(codec_id: int) -> str:
     return codec.name if codec else str(codec_id)
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    """One self-contained page: the asset decoded in the page by the wasm runtime, the originals."""
+    from .runtime import Asset, Result, RuntimeResultError, validate
+    from .view import build_page, match_originals, read_motions, serve_page
+
+    data = _read_asset(args.asset)
+    originals = []
+    status = validate(data)
+    if status != Result.OK:
+        print(f"mocodec: warning: {args.asset}: {RuntimeResultError(int(status))}; the page shows this error"
+              + (" and compares no original" if args.original else ""), file=sys.stderr)
+    else:
+        asset = Asset(data)
+        clips = [(c.name, c.frame_count, [n.name for n in asset.nodes(c.skeleton)]) for c in asset.clips]
+        motions = [(str(p), m) for p in args.original or [] for m in read_motions(p)]
+        originals = match_originals(motions, clips)
+    html = build_page(data, Path(args.asset).name, originals)
+    if args.serve:
+        serve_page(html, args.port)
+        return 0
+    out = Path(args.output) if args.output else Path(args.asset).with_suffix(".html")
+    out.write_text(html, encoding="utf-8")
+    if not args.quiet:
+        compared = f"{len(originals)} of {len(clips)} clips compared with an original" if status == Result.OK else "no clip shown"
+        print(f"wrote {out} ({len(html.encode()):,} bytes, opens with no network; {compared})")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Encode the bundled sample clips, decode them through the C runtime, report."""
     samples = Path(__file__).resolve().parent / "samples"
@@ -451,7 +526,29 @@ def build_parser() -> argparse.ArgumentParser:
                                    "ratios in both conventions and max/p99/mean error per clip and joint.")
     _add_encode_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT.mcd", help="also write the asset")
+    p.add_argument("--sweep", nargs="+", type=float, metavar="CM",
+                   help="encode at each of these tolerances and write the size-against-error curve "
+                        "(--plot) instead of one report")
+    p.add_argument("--codecs", nargs="+", metavar="CODEC",
+                   help="with --sweep: the codecs to compare (default: --codec)")
+    p.add_argument("--plot", metavar="FILE", help="with --sweep: the curve as a page (.html, default "
+                                                  "sweep.html) or a PNG (.png, needs matplotlib)")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("view", help="a page that plays an asset beside the original, with its errors",
+                       description="Write one self-contained HTML page (no network needed to open it) "
+                                   "that decodes the asset in the browser with the runtime compiled to "
+                                   "WebAssembly, shows the original and the decoded skeleton with each "
+                                   "joint coloured by its error, a timeline, the clip list, the figures "
+                                   "and the error per frame; or serve it on localhost.")
+    p.add_argument("asset", metavar="ASSET.mcd")
+    p.add_argument("--original", nargs="+", metavar="FILE",
+                   help="the motions the asset was encoded from (BVH; each matched to the clip of its name)")
+    p.add_argument("-o", "--output", metavar="VIEW.html", help="page to write (default: ASSET.html)")
+    p.add_argument("--serve", action="store_true", help="serve the page on localhost instead of writing it")
+    p.add_argument("--port", type=int, default=0, help="port for --serve (default: any free one)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "

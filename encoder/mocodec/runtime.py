@@ -18,6 +18,7 @@ Result = _rt.Result
 validate = _rt.validate
 version = _rt.version
 clip_scratch_size = _rt.clip_scratch_size
+TRANSFORM_FLOATS = _rt.TRANSFORM_FLOATS  # floats per mcd_transform: rotation, translation, scale
 
 
 def decode_world(asset: "Asset", clip: int | str) -> tuple[np.ndarray, np.ndarray]:

@@ -2,13 +2,13 @@
  * asset's bytes (docs/FORMAT.md, RMAL version 2).
  *
  * A track's keys come in groups of G. A fixed-size group entry gives the bit offset of the
- * group's data, its first key's frame, the widths of its fields and, per component, the
- * group's smallest value; the data holds the gaps between the group's keys, then each key's
- * value relative to the group's smallest at the group's widths (so any key's value is one read),
- * then the gaps too wide for their field, whole. A seek table names the group of every 2^s-th
- * frame. A random access finds the group by the seek table and a step or two, sums at most G
- * small gap fields and reads the four keys it needs; sequential playback keeps each track's
- * four keys and a cursor in the scratch and reads one gap and one value per key interval. */
+ * group's records, its first key whole (frame and value) and the widths of the records'
+ * fields; each further key is one record: its gap to the key before and, per component, its
+ * residual from a prediction, at the group's widths, outliers stored whole after the records.
+ * A seek table names the group of every 2^s-th frame. A random access finds the group by the
+ * seek table and a step or two and decodes at most a group's records (and, when x lies just
+ * after a group's first key, the group before); sequential playback keeps each track's four
+ * keys and a decoding cursor in the scratch and decodes one record per key interval. */
 #include <string.h>
 
 #include "internal.h"
@@ -17,9 +17,8 @@
 #define PAYLOAD_HEADER 32u
 #define MAX_GROUP_SHIFT 6u
 #define MAX_SEEK_SHIFT 24u
-#define GAP_WIDTH_BITS 4u   /* a gap field's width, 0 ... 15 */
-#define VALUE_WIDTH_BITS 5u /* a value field's width, 0 ... 30 */
-#define MAX_VALUE_WIDTH 30u
+#define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
+#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
@@ -48,7 +47,7 @@ typedef struct header {
 /* Everything about one track that its descriptor and the clip's frame count give. Offsets
  * are bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, split, offset_bits, seek_shift, group_shift, frame_bits;
+    uint8_t kind, dims, split, predictor, offset_bits, seek_shift, group_shift, frame_bits;
     uint8_t group_bits, abits[4];
     uint32_t keys, groups, seeks, entry_bits, data_bytes;
     float step[4];
@@ -84,14 +83,16 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
     t->kind = d[0];
     if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
     t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the first segment detached (bit 0); groups of 2^(bits 1-3) keys. */
+    /* Byte 1: the first segment detached (bit 0), the predictor (bits 1-2), groups of
+     * 2^(bits 3-5) keys. */
     t->split = d[1] & 1u;
-    t->group_shift = (d[1] >> 1) & 7u;
+    t->predictor = (d[1] >> 1) & 3u;
+    t->group_shift = (d[1] >> 3) & 7u;
     t->offset_bits = d[2];
     t->seek_shift = d[3];
     t->keys = mcd_rd_u32(d + 4);
     t->data_bytes = mcd_rd_u32(d + 8);
-    if ((d[1] >> 4) || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    if ((d[1] >> 6) || t->predictor > 2 || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
     if (t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
     if (t->seek_shift > MAX_SEEK_SHIFT) return MCD_ERROR_MALFORMED;
     if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
@@ -102,7 +103,7 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
     t->groups = ((t->keys - 1u) >> t->group_shift) + 1u;
     t->group_bits = (uint8_t)bits_for(t->groups - 1u);
     t->seeks = ((frames - 1u) >> t->seek_shift) + 1u;
-    entry = t->offset_bits + (uint64_t)t->frame_bits + GAP_WIDTH_BITS + VALUE_WIDTH_BITS * (uint64_t)t->dims;
+    entry = t->offset_bits + (uint64_t)t->frame_bits + WIDTH_BITS * (1u + (uint64_t)t->dims);
     for (c = 0; c < 4; ++c) {
         t->abits[c] = d[16 + c];
         if (c < t->dims) {
@@ -128,60 +129,28 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
 }
 
 /* ---------------------------------------------------------------- key decoding */
-/* One group's entry, unpacked: where its parts lie and how wide its fields are. */
-typedef struct group {
-    uint32_t index, first, count; /* group number, index of its first key, keys in it */
-    uint32_t frame;               /* its first key's frame */
-    uint32_t gaps, values, outliers; /* bit positions (in the data area) of its three parts */
-    uint32_t value_bits;          /* bits of one key's values */
-    uint8_t gap_width, width[4];
-    uint8_t pad[3];
-    int32_t base[4];              /* per component, the group's smallest value */
-} group;
+/* Decodes a track's keys in index order from a group's first key on: the current group's
+ * record layout, and the last two decoded keys. */
+typedef struct cursor {
+    uint32_t group, key;  /* the group, and index of the key the next call decodes */
+    uint32_t left;        /* records left in the group */
+    uint32_t bit, exc;    /* bit positions (in the data area) of the next record and outlier */
+    uint32_t frame;       /* frame of the last decoded key */
+    uint32_t keybits;     /* bits of one record */
+    uint8_t shift[5];     /* each field's position in a record: gap, then four components */
+    uint8_t width[5];     /* (a component past the track's is a field of width 0) */
+    uint8_t pad[2];
+    uint32_t mask[5];     /* its mask, the code that escapes (a width-0 field never does), */
+    uint32_t escape[5];
+    uint32_t sign[5];     /* and its sign bit (0 for width 0), for the two's complement */
+    int32_t q[4], q2[4];  /* the last two decoded values, for the prediction */
+} cursor;
 
-static void group_read(const uint8_t* p, const track_layout* t, uint32_t g, group* G) {
-    const uint8_t* table = p + t->table;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t c, size = 1u << t->group_shift;
-    G->index = g;
-    G->first = g << t->group_shift;
-    G->count = t->keys - G->first < size ? t->keys - G->first : size;
-    G->gaps = mcd_read_bits(table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    G->frame = mcd_read_bits(table, bit, t->frame_bits);
-    bit += t->frame_bits;
-    G->gap_width = (uint8_t)mcd_read_bits(table, bit, GAP_WIDTH_BITS);
-    bit += GAP_WIDTH_BITS;
-    G->value_bits = 0;
-    for (c = 0; c < t->dims; ++c) {
-        G->width[c] = (uint8_t)mcd_read_bits(table, bit, VALUE_WIDTH_BITS);
-        G->value_bits += G->width[c];
-        bit += VALUE_WIDTH_BITS;
-    }
-    for (c = 0; c < t->dims; ++c) {
-        G->base[c] = mcd_read_signed(table, bit, t->abits[c]);
-        bit += t->abits[c];
-    }
-    G->values = G->gaps + (G->count - 1u) * G->gap_width;
-    G->outliers = G->values + G->count * G->value_bits;
-}
-
-/* Key `pos` of a group: its lattice integers (q = base + the field). */
-static void group_value(const uint8_t* p, const track_layout* t, const group* G, uint32_t pos, int32_t q[4]) {
-    const uint8_t* data = p + t->data;
-    uint32_t c, bit = G->values + pos * G->value_bits;
-    if (G->value_bits <= 57u) {
-        uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
-        for (c = 0; c < t->dims; ++c) {
-            q[c] = (int32_t)((int64_t)G->base[c] + (int64_t)(w & (((uint64_t)1 << G->width[c]) - 1u)));
-            w >>= G->width[c];
-        }
-    } else {
-        for (c = 0; c < t->dims; ++c) {
-            q[c] = (int32_t)((int64_t)G->base[c] + (int64_t)mcd_read_bits(data, bit, G->width[c]));
-            bit += G->width[c];
-        }
-    }
+/* floor(v / 2) for any sign (C's division truncates; a right shift of a negative number is
+ * implementation-defined): the logical shift with the sign bit put back. */
+static int64_t floor_half(int64_t v) {
+    uint64_t u = (uint64_t)v >> 1;
+    return (int64_t)(v < 0 ? u | ((uint64_t)1 << 63) : u);
 }
 
 /* The first key's frame of group g. */
@@ -197,57 +166,103 @@ static uint32_t find_group(const uint8_t* p, const track_layout* t, uint32_t xi)
     return g;
 }
 
-/* ---------------------------------------------------------------- sampling state */
-/* Reads a track's keys in order: the group of the last key read, its position, its frame, and
- * where the next gap and the next outlier frame lie. */
-typedef struct cursor {
-    group G;
-    uint32_t pos, frame, gap_bit, exc_bit;
-} cursor;
-
-/* The cursor at key `pos` of group g (its gaps summed from the group's first key). */
-static void cursor_seek(const uint8_t* p, const track_layout* t, uint32_t g, uint32_t pos, cursor* cur) {
-    const uint8_t* data = p + t->data;
-    uint32_t w, escape, j;
-    group_read(p, t, g, &cur->G);
-    w = cur->G.gap_width;
-    escape = ((uint32_t)1 << w) - 1u;
-    cur->frame = cur->G.frame;
-    cur->gap_bit = cur->G.gaps;
-    cur->exc_bit = cur->G.outliers;
-    for (j = 0; j < pos; ++j) {
-        uint32_t gap = mcd_read_bits(data, cur->gap_bit, w);
-        cur->gap_bit += w;
-        if (w && gap == escape) {
-            cur->frame = mcd_read_bits(data, cur->exc_bit, t->frame_bits);
-            cur->exc_bit += t->frame_bits;
-        } else {
-            cur->frame += gap + 1u;
-        }
+/* Enter group g: its entry gives the record layout and the first key (value into q). */
+static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4]) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)g * t->entry_bits;
+    uint32_t c, n, first = g << t->group_shift, at = 0;
+    cur->group = g;
+    cur->bit = mcd_read_bits(table, bit, t->offset_bits);
+    bit += t->offset_bits;
+    cur->frame = mcd_read_bits(table, bit, t->frame_bits);
+    bit += t->frame_bits;
+    for (c = 0; c <= 4u; ++c) {
+        uint32_t w = c <= t->dims ? mcd_read_bits(table, bit, WIDTH_BITS) : 0u;
+        if (c <= t->dims) bit += WIDTH_BITS;
+        cur->shift[c] = (uint8_t)at;
+        cur->width[c] = (uint8_t)w;
+        cur->mask[c] = ((uint32_t)1 << w) - 1u;
+        /* The gap escapes with all ones, a residual with its most negative code. */
+        cur->escape[c] = !w ? UINT32_MAX : c == 0 ? cur->mask[0] : (uint32_t)1 << (w - 1u);
+        cur->sign[c] = w && c ? (uint32_t)1 << (w - 1u) : 0u;
+        at += w;
     }
-    cur->pos = pos;
+    cur->keybits = at;
+    for (c = 0; c < 4u; ++c) {
+        q[c] = cur->q[c] = cur->q2[c] = c < t->dims ? mcd_read_signed(table, bit, t->abits[c]) : 0;
+        if (c < t->dims) bit += t->abits[c];
+    }
+    n = t->keys - first < (1u << t->group_shift) ? t->keys - first : 1u << t->group_shift;
+    cur->left = n - 1u;
+    cur->exc = cur->bit + cur->left * cur->keybits;
+    cur->key = first + 1u;
 }
 
-/* Move the cursor to the next key (which exists). */
-static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur) {
-    uint32_t w = cur->G.gap_width, gap;
-    if (cur->pos + 1u == cur->G.count) {
-        cursor_seek(p, t, cur->G.index + 1u, 0, cur);
+/* Component c's residual in record word w, or, for its escape code, the outlier's value
+ * (then *whole is set): two's complement in the group's width. */
+static inline int64_t field_value(const uint8_t* data, const track_layout* t, cursor* cur, uint64_t w, uint32_t c,
+                                  int* whole) {
+    uint32_t u = (uint32_t)(w >> cur->shift[c + 1u]) & cur->mask[c + 1u];
+    if (u == cur->escape[c + 1u]) { /* rare */
+        int64_t v = mcd_read_signed(data, cur->exc, t->abits[c]);
+        cur->exc += t->abits[c];
+        *whole = 1;
+        return v;
+    }
+    *whole = 0;
+    return (int64_t)(u ^ cur->sign[c + 1u]) - (int64_t)cur->sign[c + 1u];
+}
+
+static inline int32_t clamp_q(int64_t v) {
+    /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
+    return (int32_t)(v > MAX_Q ? MAX_Q : v < -MAX_Q ? -MAX_Q : v);
+}
+
+/* Decode the key the cursor points at: its value into q, its frame into cur->frame. */
+static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4]) {
+    const uint8_t* data = p + t->data;
+    uint64_t w;
+    uint32_t u, c, bit = cur->bit;
+    int64_t r[4];
+    int whole[4];
+    if (cur->left == 0) {
+        group_open(p, t, cur->key >> t->group_shift, cur, q);
         return;
     }
-    gap = mcd_read_bits(p + t->data, cur->gap_bit, w);
-    cur->gap_bit += w;
-    if (w && gap == ((uint32_t)1 << w) - 1u) {
-        cur->frame = mcd_read_bits(p + t->data, cur->exc_bit, t->frame_bits);
-        cur->exc_bit += t->frame_bits;
+    w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
+    if (cur->keybits > 57u) w |= mcd_rd_u64(data + (bit >> 3) + 7u) << (56u - (bit & 7u)); /* wide records */
+    u = (uint32_t)w & cur->mask[0];
+    if (u == cur->escape[0]) { /* an outlier gap: the frame whole */
+        cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
+        cur->exc += t->frame_bits;
     } else {
-        cur->frame += gap + 1u;
+        cur->frame += u + 1u;
     }
-    cur->pos++;
+    /* Four components always: a track's missing fourth is a field of width 0. */
+    r[0] = field_value(data, t, cur, w, 0, &whole[0]);
+    r[1] = field_value(data, t, cur, w, 1, &whole[1]);
+    r[2] = field_value(data, t, cur, w, 2, &whole[2]);
+    r[3] = field_value(data, t, cur, w, 3, &whole[3]);
+    if (t->predictor) {
+        for (c = 0; c < 4u; ++c) {
+            int64_t pred = cur->q[c] + floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
+            cur->q2[c] = cur->q[c];
+            q[c] = cur->q[c] = clamp_q(whole[c] ? r[c] : pred + r[c]);
+        }
+    } else {
+        for (c = 0; c < 4u; ++c) {
+            cur->q2[c] = cur->q[c];
+            q[c] = cur->q[c] = clamp_q(whole[c] ? r[c] : (int64_t)cur->q[c] + r[c]);
+        }
+    }
+    cur->bit = bit + cur->keybits;
+    cur->left--;
+    cur->key++;
 }
 
+/* ---------------------------------------------------------------- sampling state */
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
- * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 2. */
+ * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor after them. */
 typedef struct track_state {
     track_layout L;
     mcd_quat ref;
@@ -258,7 +273,7 @@ typedef struct track_state {
     float v[4][4]; /* their values */
     float t1, t2, inv_h;
     float coef[4][4];
-    cursor cur;    /* at key min(i + 2, last) */
+    cursor cur;    /* decodes the key after key min(i + 2, last) next */
 } track_state;
 
 typedef struct node_plan {
@@ -266,6 +281,11 @@ typedef struct node_plan {
     int16_t track[3];   /* rotation, translation, scale track, or -1 */
     uint16_t pad;
 } node_plan;
+
+/* The scratch sizes are part of the format (docs/FORMAT.md, RMAL "Sampling"): changing these
+ * structures is a new section version. Plain 32-bit fields only, so every ABI agrees. */
+typedef char node_plan_is_48_bytes[sizeof(node_plan) == 48u ? 1 : -1];
+typedef char track_state_is_396_bytes[sizeof(track_state) == 396u ? 1 : -1];
 
 static size_t rma_scratch_size(const mcd_clip_view* v) {
     uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
@@ -277,14 +297,17 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-/* Window slot `slot` from key `pos` of group G at `frame`. */
-static void store_key(const uint8_t* p, track_state* ts, uint32_t slot, const group* G, uint32_t pos, uint32_t frame) {
-    int32_t q[4];
+/* Window slot `slot` from a decoded key. */
+static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int32_t q[4]) {
     uint32_t c;
-    group_value(p, &ts->L, G, pos, q);
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
     for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+}
+
+static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
+    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
+    ts->t[to] = ts->t[from];
 }
 
 static void set_curve(track_state* ts) {
@@ -308,83 +331,59 @@ static void set_curve(track_state* ts) {
     ts->valid = 1;
 }
 
-/* Move the cursor forward within its group to the last key at or before frame xi (the group
- * holds it: the next group starts after xi). `before`: the frame of the key before. */
-static void walk_to(const uint8_t* p, const track_layout* t, cursor* cur, uint32_t xi, uint32_t* before) {
-    const uint8_t* data = p + t->data;
-    uint32_t w = cur->G.gap_width, escape = ((uint32_t)1 << w) - 1u, n = cur->G.count;
-    uint32_t pos = cur->pos, frame = cur->frame, bit = cur->gap_bit, exc = cur->exc_bit, prev = frame;
-    while (pos + 1u < n) {
-        uint32_t gap = mcd_read_bits(data, bit, w), next, wide = w && gap == escape;
-        next = wide ? mcd_read_bits(data, exc, t->frame_bits) : frame + gap + 1u;
-        if (next > xi) break;
-        if (wide) exc += t->frame_bits;
-        bit += w;
-        prev = frame;
-        frame = next;
-        ++pos;
-    }
-    cur->pos = pos;
-    cur->frame = frame;
-    cur->gap_bit = bit;
-    cur->exc_bit = exc;
-    *before = prev;
-}
-
-/* Random access: the segment holding frame position x, its four keys read afresh. */
+/* Random access: the segment holding frame position x, its four keys decoded afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, before;
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, g, k, i, s, j;
+    int32_t q[4], ring_q[4][4]; /* the last four decoded keys, key k at k & 3 */
+    uint32_t ring_f[4];
     cursor* cur = &ts->cur;
-    /* Walk the gaps from the first key of x's group to i, the last key at or before x (the
-     * key before the last at the clip's end); values are read only for the four keys. */
-    cursor_seek(p, t, find_group(p, t, xi), 0, cur);
-    walk_to(p, t, cur, xi, &before);
-    i = cur->G.first + cur->pos;
-    if (i >= last) { /* x at the last frame: the segment before it, keys read afresh (rare) */
-        uint32_t slot;
-        i = last - 1u;
-        for (slot = 0; slot < 3u; ++slot) {
-            uint32_t key = i + slot < 1u ? 0u : i + slot - 1u;
-            cursor_seek(p, t, key >> t->group_shift, key & ((1u << t->group_shift) - 1u), cur);
-            store_key(p, ts, slot, &cur->G, cur->pos, cur->frame);
+    g = find_group(p, t, xi);
+    /* Key i - 1 lies in group g - 1 when key i is g's first: x before g's second key, or g's
+     * second key the last (whose segment is the one before it). */
+    if (g > 0) {
+        uint32_t second = (g << t->group_shift) + 1u;
+        if (second >= last) {
+            --g;
+        } else {
+            cursor peek;
+            group_open(p, t, g, &peek, q);
+            cursor_next(p, t, &peek, q);
+            if (peek.frame > xi) --g;
         }
-        memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
-        ts->t[3] = ts->t[2];
-        ts->i = i;
-        set_curve(ts);
-        return;
     }
-    store_key(p, ts, 1, &cur->G, cur->pos, cur->frame);
-    /* Slot 0: key i - 1: the walk passed it within the group, or it ends the group before. */
-    if (i == 0) {
-        memcpy(ts->v[0], ts->v[1], sizeof ts->v[0]);
-        ts->t[0] = ts->t[1];
-    } else if (cur->pos > 0) {
-        store_key(p, ts, 0, &cur->G, cur->pos - 1u, before);
-    } else {
-        cursor prev;
-        cursor_seek(p, t, cur->G.index - 1u, (1u << t->group_shift) - 1u, &prev);
-        store_key(p, ts, 0, &prev.G, prev.pos, prev.frame);
+    /* Decode on from group g's first key to the first key after x, then to key i + 2. */
+    group_open(p, t, g, cur, q);
+    k = g << t->group_shift;
+    ring_f[k & 3u] = cur->frame;
+    memcpy(ring_q[k & 3u], q, sizeof q);
+    while (k < last && cur->frame <= xi) {
+        cursor_next(p, t, cur, q);
+        ++k;
+        ring_f[k & 3u] = cur->frame;
+        memcpy(ring_q[k & 3u], q, sizeof q);
     }
-    /* Slots 2 and 3: keys i + 1 and i + 2, the last key repeated past the end. */
-    cursor_next(p, t, cur);
-    store_key(p, ts, 2, &cur->G, cur->pos, cur->frame);
-    if (i + 2u <= last) {
-        cursor_next(p, t, cur);
-        store_key(p, ts, 3, &cur->G, cur->pos, cur->frame);
-    } else {
-        memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
-        ts->t[3] = ts->t[2];
+    i = cur->frame > xi ? k - 1u : k;
+    if (i >= last) i = last - 1u; /* x at the last frame: the last segment */
+    while (k < i + 2u && k < last) {
+        cursor_next(p, t, cur, q);
+        ++k;
+        ring_f[k & 3u] = cur->frame;
+        memcpy(ring_q[k & 3u], q, sizeof q);
     }
     ts->i = i;
+    for (s = 0; s < 4u; ++s) {
+        j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
+        if (j > last) j = last;
+        store_key(ts, s, ring_f[j & 3u], ring_q[j & 3u]);
+    }
     set_curve(ts);
 }
 
-/* The curve of one track at x: the cached segment, a step or two forward in sequential
- * playback, or a fresh locate. */
+/* The curve of one track at x: the cached segment, the next one in sequential playback, or a
+ * fresh locate. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, last = ts->L.keys - 1u, steps;
+    uint32_t c, last = ts->L.keys - 1u;
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -393,22 +392,22 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
     } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
-        for (steps = 0; steps < 2 && x >= ts->t[2] && ts->i + 1u < last; ++steps) {
+        /* Sequential playback moves on by a key; anything further is a random access. */
+        if (ts->i + 2u <= last && x < ts->t[3]) {
             memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
             memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
             ts->i++;
             if (ts->i + 2u <= last) {
-                cursor_next(p, &ts->L, &ts->cur);
-                store_key(p, ts, 3, &ts->cur.G, ts->cur.pos, ts->cur.frame);
+                int32_t q[4];
+                cursor_next(p, &ts->L, &ts->cur, q);
+                store_key(ts, 3, ts->cur.frame, q);
             } else {
-                memcpy(ts->v[3], ts->v[2], sizeof ts->v[3]);
-                ts->t[3] = ts->t[2];
+                repeat_slot(ts, 3, 2);
             }
-        }
-        if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
-            locate(p, ts, x);
-        else
             set_curve(ts);
+        } else {
+            locate(p, ts, x);
+        }
     }
     s = (x - ts->t1) * ts->inv_h;
     for (c = 0; c < ts->L.dims; ++c)
@@ -432,8 +431,9 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
         if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
         if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
         if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
-            cursor_seek(p, &ts->L, 0, 0, &ts->cur);
-            store_key(p, ts, 0, &ts->cur.G, 0, 0);
+            int32_t q[4];
+            group_open(p, &ts->L, 0, &ts->cur, q);
+            store_key(ts, 0, 0, q);
         }
         at = ts->L.end;
         d += desc_size(ts->L.kind);
@@ -488,46 +488,47 @@ static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tran
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Every rule of one track's seek table, group table and data, reading every key. */
+/* Every rule of one track's seek table, group table and records, decoding every key. */
 static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
     uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, b;
-    uint32_t g, c, j, last_frame = 0;
+    uint32_t g, c, k, key = 0, j, last_frame = 0;
+    cursor cur;
     /* Padding after the seek entries and the group entries is zero. */
     for (b = (uint64_t)t->seeks * t->group_bits; b < 32u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u); ++b)
         if (mcd_read_bits(p + t->seek, b, 1)) return MCD_ERROR_MALFORMED;
     for (b = (uint64_t)t->groups * t->entry_bits; b < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++b)
         if (mcd_read_bits(p + t->table, b, 1)) return MCD_ERROR_MALFORMED;
+    /* Every key in order: records and outliers within the data area, groups back to back. */
     for (g = 0; g < t->groups; ++g) {
-        group G;
-        uint32_t escapes = 0, frame, w;
-        group_read(p, t, g, &G);
-        /* Groups lie back to back from the start of the data area, each within it. */
-        if (G.gaps != bit) return MCD_ERROR_MALFORMED;
-        for (c = 0; c < t->dims; ++c)
-            if (G.width[c] > MAX_VALUE_WIDTH) return MCD_ERROR_MALFORMED;
-        if ((uint64_t)G.outliers > data_bits) return MCD_ERROR_MALFORMED;
-        w = G.gap_width;
-        for (j = 1; j < G.count; ++j)
-            if (w && mcd_read_bits(p + t->data, G.gaps + (j - 1u) * w, w) == ((uint32_t)1 << w) - 1u) ++escapes;
-        if ((uint64_t)G.outliers + (uint64_t)escapes * t->frame_bits > data_bits) return MCD_ERROR_MALFORMED;
-        /* Frames increase from 0 to the last frame, the last key's; values within bounds. */
-        for (j = 0; j < G.count; ++j) {
-            cursor cur;
-            int32_t q[4];
-            cursor_seek(p, t, g, j, &cur);
-            frame = cur.frame;
-            if (g == 0 && j == 0 ? frame != 0 : (frame <= last_frame || frame > frames - 1u)) return MCD_ERROR_MALFORMED;
-            last_frame = frame;
-            group_value(p, t, &G, j, q);
+        uint32_t n = t->keys - (g << t->group_shift);
+        int32_t q[4];
+        if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
+        group_open(p, t, g, &cur, q);
+        if (cur.bit != bit || (uint64_t)cur.bit + (uint64_t)(n - 1u) * cur.keybits > data_bits) return MCD_ERROR_MALFORMED;
+        for (k = 0; k < n; ++k) {
+            if (k > 0) {
+                /* The record's escape codes tell how many outlier bits it consumes. */
+                uint64_t need = cur.exc;
+                if (cur.width[0] && mcd_read_bits(p + t->data, cur.bit, cur.width[0]) == cur.escape[0]) need += t->frame_bits;
+                for (c = 0; c < t->dims; ++c)
+                    if (cur.width[c + 1] &&
+                        mcd_read_bits(p + t->data, (uint64_t)cur.bit + cur.shift[c + 1], cur.width[c + 1]) == cur.escape[c + 1])
+                        need += t->abits[c];
+                if (need > data_bits) return MCD_ERROR_MALFORMED;
+                cursor_next(p, t, &cur, q);
+            }
             for (c = 0; c < t->dims; ++c) {
-                if ((int64_t)G.base[c] + ((int64_t)1 << G.width[c]) - 1 >= ((int64_t)1 << 30) || G.base[c] <= -(1 << 30))
-                    return MCD_ERROR_MALFORMED;
+                if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
                 if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
             }
+            /* Frames increase from 0 to the last frame, which is the last key's. */
+            if (key == 0 ? cur.frame != 0 : (cur.frame <= last_frame || cur.frame > frames - 1u)) return MCD_ERROR_MALFORMED;
+            if (key == t->keys - 1u && cur.frame != frames - 1u) return MCD_ERROR_MALFORMED;
+            last_frame = cur.frame;
+            key++;
         }
-        bit = (uint64_t)G.outliers + (uint64_t)escapes * t->frame_bits;
+        bit = cur.exc;
     }
-    if (last_frame != frames - 1u) return MCD_ERROR_MALFORMED;
     /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
     if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
     for (; bit < data_bits; ++bit)

@@ -32,10 +32,11 @@ import numpy as np
 from ..entropy import entropy_encode
 from ..ikfk.angles import bone_axes, shortest_arc
 from ..ikfk.chains import motion_chains
+from ..container import skeleton_section
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton
 from ..rotations import quat_conjugate, quat_multiply, quat_rotate
-from ..runtime import Result, RuntimeResultError
+from ..runtime import TRANSFORM_FLOATS, Result, RuntimeResultError
 from ..tolerance import ClipCheck, Tolerance, ToleranceNotMet, within
 from ..units import skeleton_height
 from . import ClipResult
@@ -331,9 +332,8 @@ def payload_frames(payload: bytes) -> np.ndarray:
 
 
 def skeleton_records(sk: Skeleton) -> bytes:
-    """The skeleton as the runtime reads it (the container's own ``SKEL`` section): parents,
-    rest translations and, when any differs from the identity, rest rotations."""
-    from ..container import skeleton_section
+    """The skeleton as the runtime reads it: a complete ``SKEL`` section (version 2: parents,
+    rest translation, rotation and scale per node; the units are not read here)."""
     return skeleton_section(sk, 1.0)
 
 
@@ -369,7 +369,8 @@ def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: flo
 def closed_loop(head: bytes, skeleton: bytes, targets: np.ndarray, effectors: np.ndarray,
                 poses: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
     """Run the runtime's closed loop (``mcd_ikp_closed_loop``): the codes (F, 3C + 3J + 3T)
-    and, with ``poses``, the local pose (F, N, 7) float32 the runtime samples at each frame."""
+    and, with ``poses``, the local pose (F, N, 10) float32 the runtime samples at each frame
+    (``mcd_transform``: rotation, translation, scale)."""
     from mocodec_runtime._native import ffi, lib
 
     frames = targets.shape[0]
@@ -383,7 +384,7 @@ def closed_loop(head: bytes, skeleton: bytes, targets: np.ndarray, effectors: np
     t = np.ascontiguousarray(targets, dtype=np.float64)
     e = np.ascontiguousarray(effectors, dtype=np.float64)
     codes = np.zeros((frames, effectors.shape[1] + targets.shape[1]), dtype=np.int32)
-    out = np.zeros((frames, nodes, 7), dtype=np.float32) if poses else None
+    out = np.zeros((frames, nodes, TRANSFORM_FLOATS), dtype=np.float32) if poses else None
     code = lib.mcd_ikp_closed_loop(
         head, len(head), skeleton, len(skeleton), frames, ffi.cast("double*", ffi.from_buffer(t)),
         ffi.cast("double*", ffi.from_buffer(e)), ffi.cast("int32_t*", ffi.from_buffer(codes)),
@@ -542,7 +543,7 @@ def payload_codes(payload: bytes) -> np.ndarray:
 def reconstruction(payload: bytes, motion: Motion, cm_per_unit: float,
                    settings: IkPredictSettings) -> np.ndarray:
     """The encoder's own reconstruction of ``payload``: the closed loop rerun with the
-    payload's head on the clip's signals, as local poses (G, N, 7) float32 at every coded
+    payload's head on the clip's signals, as local poses (G, N, 10) float32 at every coded
     frame (:func:`payload_frames`).
     Raises ValueError when the rerun does not give the payload's codes back."""
     plan = analyse(motion, cm_per_unit, settings)

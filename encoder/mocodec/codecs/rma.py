@@ -4,9 +4,9 @@
 
 It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
 top-down fitting, per-track budgets, repair through the C runtime), and differs in storage
-(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are a bit mask
-over key cells; key values are grouped residuals from a prediction at per-group widths, with
-outliers whole, so a random access decodes a few records per track and sequential playback
+(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are gaps in the
+records; key values are grouped residuals from a prediction at per-group widths, with
+outliers whole, so a random access decodes a group's records per track and sequential playback
 one record per key interval.
 
 The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
@@ -46,9 +46,9 @@ class RMASettings(KeyframeSettings):
         None: 4 when every node's tolerance is at least 0.25 cm, else 1 (dense keys).
     group_shifts : tuple of int, default (4, 5)
         Each track's keys come in groups of ``2**s`` keys, s the one of these that takes the
-        fewest bytes (docs/FORMAT.md, RMAL): a group costs an entry (offset, first frame,
-        widths, smallest values), and a random access sums up to a group's gaps. Larger
-        groups: fewer entries, wider value fields, a longer walk.
+        fewest bytes (docs/FORMAT.md, RMAL): a group costs an entry (offset, first key whole,
+        widths), and a random access decodes up to a group's records. Larger groups: fewer
+        entries, a longer walk.
     """
 
     key_grid: int | None = None

@@ -1,11 +1,12 @@
 """The ``RMAL`` version 2 payload (docs/FORMAT.md): what the runtime samples in place.
 
-A track's keys come in groups of ``2**group_shift``. A fixed-size group entry holds the bit
-offset of the group's data, its first key's frame, the widths of its fields and, per component,
-the group's smallest value; the data holds the gaps between the group's keys (a patched
-frame-of-reference code: a gap too wide for the group's width escapes, its frame follows whole),
-then each key's value above the group's smallest at the group's widths, so any key's value is
-one read. A seek table names the group of every ``2**seek_shift``-th frame.
+A track's keys come in groups of ``2**group_shift`` (16 or 32, per track). A fixed-size group
+entry holds the bit offset of the group's records, its first key whole (frame and value) and the
+widths of the records' fields; each further key is one record: its gap to the key before and,
+per component, its residual from a prediction (the key before, or its slope), at the group's
+widths, or an escape code whose value follows the records whole (a patched frame-of-reference
+code, widths chosen per group and field for the fewest bits, the predictor per track). A seek
+table names the group of every ``2**seek_shift``-th frame.
 """
 from __future__ import annotations
 
@@ -17,10 +18,8 @@ import numpy as np
 from ..bitpack import fields_bytes
 
 PAYLOAD_HEADER = 32
-GAP_WIDTH_BITS = 4
-VALUE_WIDTH_BITS = 5
-MAX_GAP_WIDTH = 15
-MAX_VALUE_WIDTH = 30
+WIDTH_BITS = 4
+MAX_WIDTH = 15
 MAX_Q = 1 << 30
 KIND_MRP, KIND_TWIST, KIND_TRANSLATION, KIND_SCALE = 1, 2, 3, 4
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
@@ -81,18 +80,51 @@ def bits_for(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def _gap_widths(gaps: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -> np.ndarray:
-    """Per group the gap field width (0 ... 15) with the fewest bits: gaps at the width, the
-    ones that need its all-ones code or more escaped (their frames whole, ``outlier_bits``)."""
-    need = np.where(gaps == 0, 0, _bit_length(gaps + 1))
+def _residuals(q: np.ndarray, group_shift: int, predictor: int) -> np.ndarray:
+    """Residuals (K, d) of every key from its group's prediction (rows of group anchors: 0)."""
+    K = len(q)
+    pos = np.arange(K) & ((1 << group_shift) - 1)
+    prev = np.vstack((q[:1], q[:-1]))
+    prev2 = np.vstack((q[:1], q[:1], q[:-2]))[:K]
+    slope = prev - prev2
+    slope[pos == 1] = 0  # the second key of a group is predicted by the first alone
+    r = q - (prev + (slope * predictor + 1) // 2)
+    r[pos == 0] = 0
+    return r
+
+
+def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -> tuple[np.ndarray, int]:
+    """Per group the field width (0 ... 15) with the fewest bits for records whose values
+    need ``need`` bits each (escaped past the width, at ``outlier_bits`` each), and the bits."""
     counts = np.bincount(grp, minlength=groups)
-    hist = np.zeros((groups, 34), dtype=np.int64)
-    np.add.at(hist, (grp, np.minimum(need, 33)), 1)
-    over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w]: gaps needing more than w bits
-    w = np.arange(MAX_GAP_WIDTH + 1)
-    cost = counts[:, None] * w[None, :] + over[:, : MAX_GAP_WIDTH + 1] * outlier_bits
+    hist = np.zeros((groups, 33), dtype=np.int64)
+    np.add.at(hist, (grp, np.minimum(need, 32)), 1)
+    over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w]: records needing more than w
+    w = np.arange(MAX_WIDTH + 1)
+    cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * outlier_bits
     cost[:, 0] = np.where(over[:, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
-    return np.argmin(cost, axis=1)
+    best = np.argmin(cost, axis=1)
+    return best, int(cost[np.arange(groups), best].sum())
+
+
+def _group_plan(r: np.ndarray, gaps: np.ndarray, group_shift: int, abits: np.ndarray,
+                frame_bits: int) -> tuple[np.ndarray, int]:
+    """Per group the widths of the gap and of each component, and the total record bits."""
+    K, d = r.shape
+    groups = (K - 1 >> group_shift) + 1
+    body = (np.arange(K) & ((1 << group_shift) - 1)) > 0
+    grp = (np.arange(K) >> group_shift)[body]
+    widths = np.zeros((groups, d + 1), dtype=np.int64)
+    # A gap escapes when it needs the all-ones code or more; a residual when it is outside
+    # [-(2^(w-1) - 1), 2^(w-1) - 1].
+    g = gaps[body]
+    widths[:, 0], total = _widths(np.where(g == 0, 0, _bit_length(g + 1)), grp, groups, frame_bits)
+    mag = np.abs(r[body])
+    for c in range(d):
+        widths[:, c + 1], bits = _widths(np.where(mag[:, c] == 0, 0, _bit_length(mag[:, c]) + 1), grp, groups,
+                                         int(abits[c]))
+        total += bits
+    return widths, total
 
 
 def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple[bytes, bytes]:
@@ -116,45 +148,55 @@ def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[
         raise ValueError("a track of a clip of several frames has at least two keys")
     G = 1 << group_shift
     groups = (K - 1) // G + 1
+    abits = signed_bits(q)
     frame_bits = bits_for(frame_count - 1)
-    one = np.int64(1)
-    grp = np.arange(K) >> group_shift
-    pos = np.arange(K) & (G - 1)
-    first = np.arange(groups) * G
-    # Values: per group and component the smallest, and the width of the rest above it.
-    lo = np.minimum.reduceat(q, first, axis=0)
-    hi = np.maximum.reduceat(q, first, axis=0)
-    widths = _bit_length(hi - lo)
-    if np.any(widths > MAX_VALUE_WIDTH):
-        raise ValueError("a group's values span 2**30 steps or more")
-    abits = np.maximum(signed_bits(lo), 1)
-    # Gaps of every key but the groups' first: frames since the key before, less one.
     gaps = np.concatenate(([0], np.diff(frames) - 1))
-    body = pos > 0
-    gap_w = _gap_widths(gaps[body], grp[body], groups, frame_bits)
-    w_gap = gap_w[grp[body]]
-    escaped = (w_gap > 0) & (gaps[body] >= (one << w_gap) - 1)
-    gap_fields = np.where(escaped, (one << w_gap) - 1, gaps[body])
-    value_fields = q - lo[grp]
-    # Per group: gap fields, value fields (key-major), escaped frames.
-    fv = [gap_fields, value_fields.ravel(), frames[body][escaped]]
-    fw = [w_gap, np.broadcast_to(widths[grp], (K, d)).ravel(), np.full(int(escaped.sum()), frame_bits)]
-    f_group = [grp[body], np.repeat(grp, d), grp[body][escaped]]
-    f_part = [np.zeros(len(fv[0]), dtype=np.int64), np.ones(len(fv[1]), dtype=np.int64),
-              np.full(len(fv[2]), 2, dtype=np.int64)]
-    order = np.lexsort((np.concatenate([np.arange(len(v)) for v in fv]), np.concatenate(f_part),
-                        np.concatenate(f_group)))
-    vals = np.concatenate(fv)[order]
-    wids = np.concatenate(fw)[order]
-    data = fields_bytes(vals, wids)
-    group_bits = np.bincount(np.concatenate(f_group), weights=np.concatenate(fw), minlength=groups).astype(np.int64)
+    best = None
+    for predictor in (0, 1, 2):
+        r = _residuals(q, group_shift, predictor)
+        widths, bits = _group_plan(r, gaps, group_shift, abits, frame_bits)
+        if best is None or bits < best[0]:
+            best = (bits, predictor, r, widths)
+    _, predictor, r, widths = best
+    pos = np.arange(K) & (G - 1)
+    grp = np.arange(K) >> group_shift
+    rec = np.flatnonzero(pos > 0)
+    w_rec = widths[grp[rec]]  # (R, d + 1): gap, components
+    # Fields of each record (gap, then components) and which of them escape.
+    raw = np.concatenate((gaps[rec][:, None], r[rec]), axis=1)
+    whole = np.concatenate((frames[rec][:, None], q[rec]), axis=1)
+    whole_bits = np.concatenate(([frame_bits], abits))
+    escaped = np.zeros(raw.shape, dtype=bool)
+    field_vals = np.zeros(raw.shape, dtype=np.int64)
+    one = np.int64(1)
+    wg = w_rec[:, 0]
+    escaped[:, 0] = (wg > 0) & (raw[:, 0] >= (one << wg) - 1)
+    field_vals[:, 0] = np.where(escaped[:, 0], (one << wg) - 1, raw[:, 0])
+    for c in range(1, d + 1):
+        w = w_rec[:, c]
+        lim = np.where(w > 0, (one << np.maximum(w - 1, 0)) - 1, 0)
+        escaped[:, c] = (np.abs(raw[:, c]) > lim) & (w > 0)
+        field_vals[:, c] = np.where(escaped[:, c], one << np.maximum(w - 1, 0), raw[:, c] % (one << w))
+    rec_bits = w_rec.sum(axis=1)
+    exc_rows, exc_field = np.nonzero(escaped)
+    exc_wids = whole_bits[exc_field]
+    exc_vals = whole[exc_rows, exc_field] & ((one << exc_wids) - 1)
+    group_bits = np.bincount(grp[rec], weights=rec_bits, minlength=groups).astype(np.int64)
+    group_bits += np.bincount(grp[rec[exc_rows]], weights=exc_wids, minlength=groups).astype(np.int64)
     starts = np.concatenate(([0], np.cumsum(group_bits)[:-1]))
-    # Group table: bit offset, first key's frame, widths, smallest values.
+    # Order fields: by group, records before outliers, in record order, then field.
+    f_group = np.concatenate((np.repeat(grp[rec], d + 1), grp[rec[exc_rows]]))
+    f_part = np.concatenate((np.zeros(len(rec) * (d + 1), dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
+    f_order = np.concatenate((np.arange(len(rec) * (d + 1)), np.arange(len(exc_rows))))
+    order = np.lexsort((f_order, f_part, f_group))
+    data = fields_bytes(np.concatenate((field_vals.ravel(), exc_vals))[order],
+                        np.concatenate((w_rec.ravel(), exc_wids))[order])
+    # Group table: bit offset, first key's frame, widths, first key's value.
     offset_bits = bits_for(int(starts.max()))
-    e_vals = [starts[:, None], frames[first][:, None], gap_w[:, None], widths, lo & ((one << abits) - 1)]
+    first = np.arange(groups) * G
+    e_vals = [starts[:, None], frames[first][:, None], widths, q[first] & ((one << abits) - 1)]
     e_wids = [np.full((groups, 1), offset_bits), np.full((groups, 1), frame_bits),
-              np.full((groups, 1), GAP_WIDTH_BITS), np.full((groups, d), VALUE_WIDTH_BITS),
-              np.broadcast_to(abits, (groups, d))]
+              np.full((groups, d + 1), WIDTH_BITS), np.broadcast_to(abits, (groups, d))]
     table = fields_bytes(np.concatenate(e_vals, axis=1).ravel(), np.concatenate(e_wids, axis=1).ravel())
     # Seek table: the group of every 2^s-th frame, s about two groups' span.
     span = max(1.0, frame_count / groups)
@@ -162,15 +204,16 @@ def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[
     seek_frames = np.arange(((frame_count - 1) >> seek_shift) + 1) << seek_shift
     seek = np.searchsorted(frames[first], seek_frames, side="right") - 1
     seek_bytes = fields_bytes(seek, bits_for(groups - 1))
-    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | group_shift << 1, offset_bits, seek_shift, K,
-                       len(data), t.step)
+    body = seek_bytes + table + data
+    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | predictor << 1 | group_shift << 3, offset_bits,
+                       seek_shift, K, len(data), t.step)
     head += bytes([int(b) for b in abits] + [0] * (4 - d))
     if t.kind in (KIND_MRP, KIND_TWIST):
         head += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)
     if t.kind == KIND_TWIST:
         head += struct.pack("<3hHf", *[int(v) for v in t.axis_codes], 0, t.angle_step)
     assert len(head) == DESC_SIZE[t.kind]
-    return head, seek_bytes + table + data
+    return head, body
 
 
 def payload(frame_count: int, node_modes: list[tuple[int, int, int]], constants: list[float],

@@ -50,7 +50,8 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
             a = np.frombuffer(payload, "<i2", 3, pos + 28).astype(np.float64)
             axis = a / np.linalg.norm(a)
             steps[0] = struct.unpack_from("<f", payload, pos + 36)[0]
-        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), group_shift=(flags >> 1) & 7, offset_bits=offset_bits,
+        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), predictor=(flags >> 1) & 3,
+                          group_shift=(flags >> 3) & 7, offset_bits=offset_bits,
                           seek_shift=seek_shift, K=K, data_bytes=data_bytes, steps=steps, abits=abits, ref=ref,
                           axis=axis))
         pos += _DESC_SIZE[kind]
@@ -62,7 +63,7 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
         groups = (t["K"] - 1) // G + 1
         seeks = ((frames - 1) >> t["seek_shift"]) + 1
         table_at = pos + 4 * ((seeks * _bits_for(groups - 1) + 31) // 32)
-        entry = t["offset_bits"] + frame_bits + 4 + 5 * d + sum(t["abits"])
+        entry = t["offset_bits"] + frame_bits + 4 * (d + 1) + sum(t["abits"])
         data_at = table_at + 4 * ((groups * entry + 31) // 32)
         pos = data_at + t["data_bytes"]
         table = payload[table_at:data_at] + bytes(8)
@@ -71,34 +72,42 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
         key_frames = np.zeros(t["K"], dtype=np.int64)
         for g in range(groups):
             bit = g * entry
-            at = read_bits(table, bit, t["offset_bits"])
+            rec = read_bits(table, bit, t["offset_bits"])
             bit += t["offset_bits"]
             k0 = g * G
-            n = min(G, t["K"] - k0)
             key_frames[k0] = read_bits(table, bit, frame_bits)
             bit += frame_bits
-            wg = read_bits(table, bit, 4)
-            bit += 4
-            w = [read_bits(table, bit + 5 * c, 5) for c in range(d)]
-            bit += 5 * d
-            base = []
+            w = [read_bits(table, bit + 4 * c, 4) for c in range(d + 1)]
+            bit += 4 * (d + 1)
             for c in range(d):
-                base.append(_signed(read_bits(table, bit, t["abits"][c]), t["abits"][c]))
+                q[k0, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
                 bit += t["abits"][c]
-            values_at = at + (n - 1) * wg
-            exc = values_at + n * sum(w)
+            n = min(G, t["K"] - k0)
+            exc = rec + (n - 1) * sum(w)
             for j in range(1, n):
-                gap = read_bits(data, at + (j - 1) * wg, wg)
-                if wg and gap == (1 << wg) - 1:
-                    key_frames[k0 + j] = read_bits(data, exc, frame_bits)
+                k = k0 + j
+                gap = read_bits(data, rec, w[0])
+                rec += w[0]
+                if w[0] and gap == (1 << w[0]) - 1:
+                    key_frames[k] = read_bits(data, exc, frame_bits)
                     exc += frame_bits
                 else:
-                    key_frames[k0 + j] = key_frames[k0 + j - 1] + gap + 1
-            for j in range(n):
-                b2 = values_at + j * sum(w)
+                    key_frames[k] = key_frames[k - 1] + gap + 1
                 for c in range(d):
-                    q[k0 + j, c] = base[c] + read_bits(data, b2, w[c])
-                    b2 += w[c]
+                    q1 = q[k - 1, c]
+                    q2 = q[k - 2, c] if j >= 2 else q1
+                    pred = q1 + ((q1 - q2) * t["predictor"] + 1) // 2
+                    wc = w[c + 1]
+                    if wc == 0:
+                        q[k, c] = pred
+                        continue
+                    r = _signed(read_bits(data, rec, wc), wc)
+                    rec += wc
+                    if r == -(1 << (wc - 1)):
+                        q[k, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
+                        exc += t["abits"][c]
+                    else:
+                        q[k, c] = pred + r
         t.update(frames=key_frames, q=q)
     header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts)
     return header, descs
