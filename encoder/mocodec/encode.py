@@ -14,7 +14,7 @@ import numpy as np
 
 from . import __version__, codecs
 from .container import AssetBuilder, ClipEntry
-from .kinematics import forward_kinematics
+from .kinematics import motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
 from .motion import Motion
 from .runtime import Asset, decode_world
@@ -68,7 +68,7 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset."""
-    originals = [forward_kinematics(m.skeleton, m.rotations, m.translations)[1] for m in motions]
+    originals = [motion_world(m)[1] for m in motions]
 
     def check(i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
         data = _single_clip_asset(motions[i], cm_per_unit[i], codec, payload, prefix)
@@ -86,7 +86,7 @@ def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoi
     names = clip_names or [m.name for m in motions]
     reports = []
     for m, u, name in zip(motions, units, names):
-        rot_o, pos_o = forward_kinematics(m.skeleton, m.rotations, m.translations)
+        rot_o, pos_o = motion_world(m)
         rot_d, pos_d = a.sample_frames(name, world=True, contacts=contacts)
         local_d, _ = a.sample_frames(name, world=False, contacts=contacts)
         metric = ErrorMetric(cm_per_unit=u.cm_per_unit, height_units=u.height_units)
@@ -190,7 +190,7 @@ def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], uni
     stats: list[dict[str, Any]] = [{} for _ in motions]
     originals = []
     for i, (m, u) in enumerate(zip(motions, units)):
-        _, orig = forward_kinematics(m.skeleton, m.rotations, m.translations)
+        _, orig = motion_world(m)
         originals.append(orig)
         _, dec = decode_world(a, m.name)
         masks = C.detect_contacts(m.skeleton, orig, m.frame_rate, u.cm_per_unit)
