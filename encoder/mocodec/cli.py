@@ -17,19 +17,24 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import __version__, codecs
+from .codecs import DEFAULT_CODEC
+from .tolerance import DEFAULT_TOLERANCE_CM
 
 EPILOG = """\
 examples:
   mocodec encode walk.bvh run.bvh -o moves.mcd --tolerance 0.5
   mocodec encode ../mocap/ -o library.mcd --tolerance 1 --units cmu
+  mocodec encode hero.glb -o hero.mcd --rate 30
   mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
+  mocodec decode hero.mcd -o hero_decoded.glb
   mocodec info moves.mcd
   mocodec eval walk.bvh --tolerance 0.1 --json
 
 The tolerance is a promise: the largest world-space position error of any joint or end site
-on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
-no units: give --units or --cm-per-unit, or mocodec guesses from the skeleton's height and
-says what it assumed.
+(and of a point beyond every glTF leaf joint) on any frame, in centimetres, measured through
+the C runtime an engine uses. glTF is in metres. BVH files have no units: give --units or
+--cm-per-unit, or mocodec guesses from the figure's animated poses (one unit for clips that
+share a skeleton), says what it assumed, and warns about a figure under 50 or over 300 cm.
 """
 
 
@@ -70,38 +75,25 @@ def _progress(total: int, enabled: bool):
 
 
 def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
-    paths: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh")
-            if not found:
-                raise CliError(f"{p}: folder holds no .bvh files")
-            paths.extend(found)
-        elif p.exists():
-            paths.append(p)
-        else:
-            raise CliError(f"{p}: no such file or folder")
-    if not paths:
-        raise CliError("no input files")
-    return paths
+    from .load import InputError, expand
+
+    try:
+        return expand(inputs)
+    except InputError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _warn(message: str) -> None:
+    print(f"mocodec: warning: {message}", file=sys.stderr)
 
 
 def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
-    from .io import read_bvh
-    from .units import resolve_units
+    from .load import load_all
+    from .units import resolve_library_units
 
-    motions, units = [], []
-    names: set[str] = set()
-    for p in paths:
-        m = read_bvh(p)
-        base, k = m.name, 2
-        while m.name in names:  # two files with one stem: keep both, distinctly named
-            m.name = f"{base}_{k}"
-            k += 1
-        names.add(m.name)
-        motions.append(m)
-        units.append(resolve_units(m.skeleton, args.units, args.cm_per_unit))
+    motions = load_all(paths, getattr(args, "rate", None))
+    units = resolve_library_units(motions, args.units, args.cm_per_unit,
+                                  strict=bool(getattr(args, "strict", False)), warn=_warn)
     if not quiet:
         described = {}
         for m, u in zip(motions, units):
@@ -187,6 +179,7 @@ def _summary_lines(result) -> list[str]:
         f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
         f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
         f"encode time: {result.encode_seconds:.1f} s",
+        *result.notes,
     ]
 
 
@@ -223,6 +216,7 @@ def _result_json(result) -> dict[str, Any]:
         "size": result.size.as_dict(),
         "error": combine([c.error for c in result.clips]),
         "encode_seconds": result.encode_seconds,
+        "notes": result.notes,
         "clips": [
             {"name": c.name, "frames": c.frames, "units": c.units.label,
              "cm_per_unit": c.units.cm_per_unit, **c.error.as_dict(), **c.stats}
@@ -382,12 +376,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- parser
 def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="BVH files or folders of BVH files (one clip each)")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+                   help="BVH files (one clip each), glTF 2.0 files (.gltf, .glb: every animation "
+                        "a clip) or folders of them")
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s, the smallest that "
                         "meets the tolerance: a whole library in one section; spline samples in "
                         "place without resident memory; `mocodec --help` describes each)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM",
                    help="max world-space position error of any joint or end site on any frame, "
                         "in cm (default: %(default)s)")
     p.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
@@ -400,8 +395,14 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     units = p.add_mutually_exclusive_group()
     units.add_argument("--units", choices=["cm", "m", "mm", "in", "cmu"],
                        help="the BVH files' length unit (cmu: CMU mocap, 5.6444 cm); "
-                            "default: guessed from the skeleton's height")
-    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per file unit")
+                            "default: guessed from the figure's animated poses (glTF is metres)")
+    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per BVH file unit")
+    p.add_argument("--strict", action="store_true",
+                   help="a BVH figure under 50 or over 300 cm tall in its unit is an error, not a warning")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="frames per second glTF clips are resampled at (default: the clip's key "
+                        "spacing when regular, subdivided up to 24 Hz, else 60); errors are measured "
+                        "against the source's own interpolation at those times")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
                    help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
     p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
@@ -456,9 +457,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "
                                    "runtime, print ratio and error.")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM")
     p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
                    help="where to write the asset and decoded BVH (default: %(default)s)")
     p.set_defaults(func=cmd_demo)

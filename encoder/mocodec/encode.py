@@ -18,7 +18,8 @@ from .kinematics import motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
 from .motion import Motion
 from .runtime import Asset, decode_world
-from .tolerance import Tolerance, ToleranceNotMet
+from .codecs import DEFAULT_CODEC
+from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .units import UnitsChoice
@@ -49,6 +50,8 @@ class EncodeResult:
     # errors are what it reached, and the tolerance was not applied.
     promise: bool = True
     settings: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    """How resampled (glTF) clips were measured (:func:`mocodec.load.sampling_notes`)."""
 
     @property
     def max_error_cm(self) -> float:
@@ -97,7 +100,7 @@ def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoi
 def encode_motions(
     motions: list[Motion],
     units: "list[UnitsChoice]",
-    codec: str = "spline",
+    codec: str = DEFAULT_CODEC,
     tolerance: Tolerance | None = None,
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
@@ -112,10 +115,11 @@ def encode_motions(
     """
     if not motions:
         raise EncodeError("nothing to encode")
-    tolerance = tolerance or Tolerance(1.0)
+    tolerance = tolerance or Tolerance(DEFAULT_TOLERANCE_CM)
     for m in motions:
         m.validate()
     entry = codecs.get(codec)
+    from .load import sampling_notes
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
     check = make_check(motions, cm, codec)
@@ -172,7 +176,7 @@ def encode_motions(
     clips = [ClipReport(m.name, m.frame_count, r, u, s)
              for m, r, u, s in zip(motions, reports, units, stats)]
     return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed,
-                        out.promise, dict(out.settings))
+                        out.promise, dict(out.settings), sampling_notes(motions))
 
 
 def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], units: "list[UnitsChoice]",

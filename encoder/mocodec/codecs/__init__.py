@@ -41,6 +41,11 @@ decoded by the C runtime (:func:`mocodec.encode.make_check`)."""
 
 ProgressFn = Callable[[str], None]
 
+DEFAULT_CODEC = "rma"
+"""The codec of ``mocodec encode``, :func:`mocodec.encode.encode_motions` and
+:func:`mocodec.encode` alike: the smallest that meets the tolerance, and the one that stores
+animated scale."""
+
 SCALE_NOISE = 1e-4
 """Relative difference from the rest scale below which a scale is not animated."""
 

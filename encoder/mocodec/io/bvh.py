@@ -59,7 +59,9 @@ def read_bvh(path: str | os.PathLike) -> Motion:
         data = path.read_bytes()
     except OSError as exc:
         raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
-    return parse_bvh(data, path=str(path), name=path.stem)
+    motion = parse_bvh(data, path=str(path), name=path.stem)
+    motion.source = {"format": "bvh", "file": str(path)}
+    return motion
 
 
 def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = None) -> Motion:
