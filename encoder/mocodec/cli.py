@@ -261,13 +261,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    from .decode import decode_clip
+    from .decode import decode_clip, write_asset_gltf
     from .io import write_bvh
     from .runtime import Asset
 
-    asset = Asset(_read_asset(args.asset))
+    data = _read_asset(args.asset)
+    asset = Asset(data)
     clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
     out = Path(args.output)
+    if out.suffix.lower() in (".glb", ".gltf"):
+        write_asset_gltf(data, out, [c.index for c in clips])
+        if not args.quiet:
+            print(f"wrote {out} ({len(clips)} clip(s) as glTF animations, decoded by the C runtime)")
+        return 0
     if len(clips) > 1:
         if out.suffix.lower() == ".bvh":
             raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
@@ -279,7 +285,12 @@ def cmd_decode(args: argparse.Namespace) -> int:
         targets = [out]
     progress = _progress(len(clips), not args.quiet)
     for c, target in zip(clips, targets):
-        write_bvh(decode_clip(asset, c.index), target, precision=args.precision)
+        motion = decode_clip(asset, c.index)
+        sk = motion.skeleton
+        if sk.is_virtual.any() or np.any(sk.rest_rotations != [0.0, 0.0, 0.0, 1.0]) or np.any(sk.rest_scales != 1):
+            raise CliError(f"clip {c.name!r} comes from glTF (rest rotations and scales, no BVH "
+                           "channels): decode it to a .glb or .gltf file")
+        write_bvh(motion, target, precision=args.precision)
         progress(c.name)
         if not args.quiet:
             print(f"wrote {target} ({c.frame_count} frames, decoded by the C runtime)")
@@ -430,12 +441,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcd", help="asset to write")
     p.set_defaults(func=cmd_encode)
 
-    p = sub.add_parser("decode", help="decode an asset back to BVH through the C runtime",
+    p = sub.add_parser("decode", help="decode an asset back to BVH or glTF through the C runtime",
                        description="Decode clips through the C runtime and write BVH with the "
-                                   "original hierarchy and channel layout.")
+                                   "original hierarchy and channel layout, or glTF 2.0 (-o x.glb / "
+                                   "x.gltf: every clip an animation on the original node hierarchy, "
+                                   "a key per frame).")
     p.add_argument("asset", metavar="ASSET.mcd")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="a .bvh file (one clip) or a folder (one file per clip)")
+                   help="a .bvh file (one clip), a folder (one BVH per clip), or a .glb / .gltf "
+                        "file (every clip)")
     p.add_argument("--clip", metavar="NAME", help="decode only this clip")
     p.add_argument("--precision", type=int, default=6, help="decimals written (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true")

@@ -130,9 +130,12 @@ def encode_motions(
     builder = AssetBuilder()
     if out.section_prefix:
         builder.codec_prefix[codec] = out.section_prefix
+    skin_joints: dict[str, str] = {}
     for m, u, payload in zip(motions, units, out.payloads):
         s = builder.add_skeleton(m.skeleton, u.cm_per_unit)
         builder.add_clip(ClipEntry(m.name, s, codec, payload, m.frame_count, m.frame_rate))
+        if (m.source or {}).get("joints") is not None:
+            skin_joints[str(s)] = index_ranges(m.source["joints"])
     # First pass measures the asset; the second writes the measured errors into META.
     asset = builder.build()
     contact_stats: list[dict[str, Any]] = [{} for _ in motions]
@@ -164,9 +167,12 @@ def encode_motions(
                 "cm_per_unit": u.cm_per_unit,
                 "units": u.label,
                 "raw_bvh_bytes": m.skeleton.channel_count * m.frame_count * 4,
+                **_source_meta(m),
             }
             for m, r, u in zip(motions, reports, units)
         },
+        # glTF export: which nodes of each skeleton were skin joints (the others moved them).
+        **({"skin_joints": skin_joints} if skin_joints else {}),
     }
     asset = builder.build()
     stats = out.stats or [{} for _ in motions]
@@ -177,6 +183,39 @@ def encode_motions(
              for m, r, u, s in zip(motions, reports, units, stats)]
     return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed,
                         out.promise, dict(out.settings), sampling_notes(motions))
+
+
+def _source_meta(m: Motion) -> dict[str, Any]:
+    """What META keeps of a clip's source: its format and, for glTF, the time of frame 0."""
+    src = m.source or {}
+    out: dict[str, Any] = {"source": src["format"]} if "format" in src else {}
+    if src.get("start_s"):
+        out["start_s"] = float(src["start_s"])
+    return out
+
+
+def index_ranges(indices: list[int]) -> str:
+    """``[0, 1, 2, 5]`` -> ``"0-2,5"``."""
+    parts, run = [], []
+    for i in sorted(indices):
+        if run and i == run[-1] + 1:
+            run.append(i)
+            continue
+        if run:
+            parts.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+        run = [i]
+    if run:
+        parts.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
+    return ",".join(parts)
+
+
+def parse_index_ranges(text: str) -> list[int]:
+    """The inverse of :func:`index_ranges`."""
+    out: list[int] = []
+    for part in filter(None, text.split(",")):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
 
 
 def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], units: "list[UnitsChoice]",

@@ -587,9 +587,9 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
         clip_rate = float(rate) if rate is not None else (_clip_rate(dt) if dt else DEFAULT_RATE)
         t0 = min(float(c.times[0]) for c in chans)
         t1 = max(float(c.times[-1]) for c in chans)
-        frames = int(math.floor((t1 - t0) * clip_rate + 1e-6)) + 1
-        if t0 + (frames - 1) / clip_rate < t1 - 1e-9:
-            frames += 1  # the last key gets a frame too (held past it)
+        # Frames up to the last key (a frame at or just past it; float32 key times may miss
+        # the grid by a few ulps).
+        frames = int(math.ceil((t1 - t0) * clip_rate - 1e-3)) + 1
         times = t0 + np.arange(frames) / clip_rate
         n = sk.node_count
         rot = np.broadcast_to(sk.rest_rotations, (frames, n, 4)).copy()
