@@ -46,6 +46,9 @@ DEFAULT_CODEC = "rma"
 :func:`mocodec.encode` alike: the smallest that meets the tolerance, and the one that stores
 animated scale."""
 
+RESEARCH_PACKAGES = ("sklearn", "pywt")
+"""Imports of the research extra (``mocodec[research]``), needed by rma-pca and bench/ only."""
+
 SCALE_NOISE = 1e-4
 """Relative difference from the rest scale below which a scale is not animated."""
 
@@ -141,7 +144,13 @@ class Codec:
 
     @property
     def implementation(self) -> ModuleType:
-        return importlib.import_module(f"{__name__}.{self.module}")
+        try:
+            return importlib.import_module(f"{__name__}.{self.module}")
+        except ModuleNotFoundError as exc:
+            if exc.name in RESEARCH_PACKAGES:
+                raise ImportError(f"codec {self.name!r} needs {exc.name}, an optional dependency: "
+                                  "pip install 'mocodec[research]'") from None
+            raise
 
     @property
     def settings_type(self) -> type:

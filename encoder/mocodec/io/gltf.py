@@ -18,6 +18,7 @@ import base64
 import math
 import os
 import urllib.parse
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -73,7 +74,9 @@ def _load_document(path: Path):
     try:
         with open(path, "rb") as f:
             head = f.read(4)
-        doc = GLTF2().load_binary(str(path)) if head == b"glTF" else GLTF2().load_json(str(path))
+        with warnings.catch_warnings():  # pygltflib warns and goes on; a fault is ours to report
+            warnings.simplefilter("ignore")
+            doc = GLTF2().load_binary(str(path)) if head == b"glTF" else GLTF2().load_json(str(path))
     except GLTFError:
         raise
     except Exception as exc:  # pygltflib raises whatever its parser meets
