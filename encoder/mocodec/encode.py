@@ -17,11 +17,11 @@ from .container import AssetBuilder, ClipEntry
 from .kinematics import motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
 from .motion import Motion
-from .runtime import Asset, decode_world
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
+    from .runtime import Asset
     from .units import UnitsChoice
 
 
@@ -71,6 +71,8 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset."""
+    from .runtime import Asset, decode_world  # the binding, needed only once encoding runs
+
     originals = [motion_world(m)[1] for m in motions]
 
     def check(i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
@@ -81,10 +83,12 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
     return check
 
 
-def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoice]",
+def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsChoice]",
              clip_names: list[str] | None = None, contacts: bool = False) -> list[ErrorReport]:
     """Decode each clip of ``asset`` through the runtime and compare with ``motions``
     (``contacts``: with the contact trajectories applied, as an engine samples them)."""
+    from .runtime import Asset
+
     a = asset if isinstance(asset, Asset) else Asset(asset)
     names = clip_names or [m.name for m in motions]
     reports = []
@@ -227,6 +231,7 @@ def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], uni
     past the tolerance is shrunk (a smaller share of the correction is stored) and, if that
     is not enough, left out; the check is repeated until no node is over."""
     from . import contacts as C
+    from .runtime import Asset, decode_world
 
     a = Asset(asset)
     clips: dict[int, C.ClipContacts] = {}
