@@ -47,7 +47,8 @@ def decode_asset(data: bytes) -> list[Motion]:
 def write_asset_gltf(data: bytes, path, clips: list[int | str] | None = None) -> list[Motion]:
     """Decode clips (default: all) of an asset through the runtime and write them as one glTF
     file (:func:`mocodec.io.gltf_write.write_gltf`): every skeleton's node hierarchy, one
-    animation per clip, timed from the clip's source start (META). Returns the motions."""
+    animation per clip, timed from the clip's source start (META), lengths in metres (a BVH
+    skeleton's through its cm per unit). Returns the motions as written."""
     from .container import read_summary
     from .encode import parse_index_ranges
     from .io.gltf_write import write_gltf
@@ -56,12 +57,18 @@ def write_asset_gltf(data: bytes, path, clips: list[int | str] | None = None) ->
     meta = read_summary(data).meta
     infos = [asset.clips[asset.clip_index(c)] for c in clips] if clips is not None else asset.clips
     used = sorted({c.skeleton for c in infos})
-    skeletons = [skeleton_from_asset(asset, s)[0] for s in used]
+    skeletons, metres = [], []  # glTF lengths are metres: a BVH skeleton is converted
+    for s in used:
+        sk, cm_per_unit = skeleton_from_asset(asset, s)
+        metres.append(cm_per_unit / 100.0)
+        sk.offsets = sk.offsets * metres[-1]
+        skeletons.append(sk)
     joints = {used.index(int(s)): parse_index_ranges(r)
               for s, r in meta.get("skin_joints", {}).items() if int(s) in used}
     motions, entries = [], []
     for c in infos:
         m = decode_clip(asset, c.index)
+        m.translations = m.translations * metres[used.index(c.skeleton)]
         start = float(meta.get("clips", {}).get(c.name, {}).get("start_s", 0.0))
         motions.append(m)
         entries.append((used.index(c.skeleton), m, start))

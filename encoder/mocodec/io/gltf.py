@@ -518,7 +518,11 @@ def _key_spacing(channels: list[_Channel]) -> float | None:
     longest = max(channels, key=lambda c: len(c.times))
     if len(longest.times) < 2:
         return None
-    dt = float(np.median(np.diff(longest.times)))
+    # The smallest gap is the grid step to a first approximation; refined over the whole span
+    # so that float32 key times (a few ulps each) do not drift off the grid over many keys.
+    gaps = np.diff(longest.times)
+    steps = np.rint(gaps / gaps.min())
+    dt = float((longest.times[-1] - longest.times[0]) / steps.sum())
     t0 = min(float(c.times[0]) for c in channels)
     for c in channels:
         k = (c.times - t0) / dt
