@@ -87,3 +87,23 @@ def test_bvh_mcd_gltf_keeps_the_motion_in_metres(sample_paths, tmp_path):
     assert back.frame_count == orig.frame_count
     err = np.linalg.norm(world_positions(back)[:, idx] * 100.0 - world_positions(orig) * 5.6444, axis=-1)
     assert err.max() <= 0.5 + 1e-3
+
+
+def test_rate_option_and_the_sampling_note(tmp_path):
+    r = run("eval", str(SAMPLES / "gltf" / "SimpleSkin.gltf"), "--rate", "30", "--json")
+    assert r.returncode == 0, r.stderr
+    notes = json.loads(r.stdout)["notes"]
+    assert notes == ["SimpleSkin: resampled at 30 Hz (given); errors are measured against the source's own "
+                     "interpolation (LINEAR) at those times"]
+    bad = run("eval", str(SAMPLES / "gltf" / "SimpleSkin.gltf"), "--rate", "0")
+    assert bad.returncode == 1 and "rate must be a positive number" in bad.stderr
+
+
+def test_rma_pca_refuses_gltf_clips():
+    from mocodec import codecs
+    from mocodec.codecs import UnsupportedMotion
+    from mocodec.tolerance import Tolerance
+
+    motions = read_gltf(SAMPLES / "gltf" / "RiggedFigure.glb")
+    with pytest.raises(UnsupportedMotion, match="codec 'rma-pca' reads BVH channel layouts"):
+        codecs.get("rma-pca").encode(motions, [100.0], Tolerance(1.0), check=None)
