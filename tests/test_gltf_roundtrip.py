@@ -107,3 +107,11 @@ def test_rma_pca_refuses_gltf_clips():
     motions = read_gltf(SAMPLES / "gltf" / "RiggedFigure.glb")
     with pytest.raises(UnsupportedMotion, match="codec 'rma-pca' reads BVH channel layouts"):
         codecs.get("rma-pca").encode(motions, [100.0], Tolerance(1.0), check=None)
+
+
+def test_skin_joint_ranges_round_trip():
+    from mocodec.encode import index_ranges, parse_index_ranges
+
+    for joints in ([0, 1, 2, 5], [3], [1, 3, 4, 5, 9, 10]):
+        assert parse_index_ranges(index_ranges(joints)) == joints
+    assert index_ranges([5, 0, 1, 2]) == "0-2,5"

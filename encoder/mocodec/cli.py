@@ -174,7 +174,7 @@ def _summary_lines(result) -> list[str]:
         f"codec: {result.codec}   " + (f"tolerance: {result.tolerance.tolerance_cm} cm" if result.promise else
                                        f"PCA variance {result.settings.get('pca_variance')} (no tolerance)"),
         f"size: {_fmt_int(size.asset_bytes)} bytes ({_fmt_int(size.bytes_per_second)} B/s of animation)",
-        f"ratio: {size.ratio_bvh:.1f}:1 vs BVH float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
+        f"ratio: {size.ratio_bvh:.1f}:1 vs the source's float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
         f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
         f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
         f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
@@ -343,7 +343,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"  memory to sample: the asset itself ({len(data):,} B, sampled in place) + "
           f"{info['scratch_bytes']:,} B scratch per playing instance")
     if info["ratio_bvh"]:
-        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs BVH float32 channels")
+        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs the source's float32 channels")
     print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))
     for i, s in enumerate(info["skeletons"]):
         print(f"  skeleton {i}: {s['nodes']} nodes, {s['cm_per_unit']:g} cm per unit")

@@ -15,7 +15,7 @@ import numpy as np
 from . import __version__, codecs
 from .container import AssetBuilder, ClipEntry
 from .kinematics import motion_world
-from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
+from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
@@ -170,7 +170,7 @@ def encode_motions(
                 "height_cm": round(r.height_cm, 3),
                 "cm_per_unit": u.cm_per_unit,
                 "units": u.label,
-                "raw_bvh_bytes": m.skeleton.channel_count * m.frame_count * 4,
+                "raw_bvh_bytes": raw_bvh_bytes(m),
                 **_source_meta(m),
             }
             for m, r, u in zip(motions, reports, units)
@@ -200,17 +200,10 @@ def _source_meta(m: Motion) -> dict[str, Any]:
 
 def index_ranges(indices: list[int]) -> str:
     """``[0, 1, 2, 5]`` -> ``"0-2,5"``."""
-    parts, run = [], []
-    for i in sorted(indices):
-        if run and i == run[-1] + 1:
-            run.append(i)
-            continue
-        if run:
-            parts.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-        run = [i]
-    if run:
-        parts.append(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]))
-    return ",".join(parts)
+    values = sorted(indices)
+    starts = [k for k, v in enumerate(values) if k == 0 or v != values[k - 1] + 1]
+    runs = [values[a:b] for a, b in zip(starts, starts[1:] + [len(values)])]
+    return ",".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
 
 
 def parse_index_ranges(text: str) -> list[int]:
