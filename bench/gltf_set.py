@@ -10,7 +10,8 @@ frame (ACL's convention, virtual end points left out), and the error through the
 p99, mean, cm) in the runtime's composition (scale multiplied per axis, what the promise is
 about) and, beside it, in glTF's matrix composition of the same decoded local transforms (what
 an engine that imports the decoded glTF would show). A codec without scale tracks refuses the
-files that animate scale; the row says so. Writes ``<out>/gltf_set.json`` and ``.md``.
+files that animate scale; the row says so. Writes ``<out>/<name>.json`` and ``.md`` (name
+``gltf_set`` by default; ``--cmu`` pointing at no BVH files leaves the CMU rows out).
 Sizes and errors only; speed is bench/run_bench.py's.
 """
 from __future__ import annotations
@@ -97,6 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--codecs", nargs="+", default=["rma", "spline"])
     ap.add_argument("--tolerances", type=float, nargs="+", default=[1.0], metavar="CM")
     ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--name", default="gltf_set", help="results file stem (default: %(default)s)")
     args = ap.parse_args(argv)
     files = sorted(p for p in args.gltf.glob("*") if p.suffix.lower() in (".gltf", ".glb"))
     if not files:
@@ -125,10 +127,10 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(r)
                 print(json.dumps(r), file=sys.stderr, flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "gltf_set.json").write_text(json.dumps({"gltf": str(args.gltf), "cmu": str(args.cmu), "rows": rows},
+    (args.out / f"{args.name}.json").write_text(json.dumps({"gltf": str(args.gltf), "cmu": str(args.cmu), "rows": rows},
                                                        indent=2))
     md = markdown(rows)
-    (args.out / "gltf_set.md").write_text(md)
+    (args.out / f"{args.name}.md").write_text(md)
     print(md)
     return 0
 

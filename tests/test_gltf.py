@@ -166,6 +166,8 @@ MALFORMED = {
     "version": (lambda d: d.json["asset"].__setitem__("version", "1.0"), "asset.version", "2.x"),
     "no animation": (lambda d: d.json.__setitem__("animations", []), "", "no animation"),
     "bad child": (lambda d: d.json["nodes"][3].__setitem__("children", [42]), "node 3", "child 42"),
+    "compressed buffers": (lambda d: d.json.__setitem__("extensionsRequired", ["EXT_meshopt_compression"]),
+                           "extensionsRequired", "does not decode"),
 }
 
 

@@ -46,6 +46,7 @@ _COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0
 _TYPES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _PATH_WIDTH = {"translation": 3, "rotation": 4, "scale": 3}
 _INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
+_COMPRESSION = {"EXT_meshopt_compression", "KHR_meshopt_compression"}  # buffer views we cannot read
 
 
 class GLTFError(ValueError):
@@ -87,6 +88,10 @@ def _load_document(path: Path):
     version = str(getattr(doc.asset, "version", "") or "")
     if not version.startswith("2."):
         raise GLTFError(f"asset.version is {version!r}; only glTF 2.x is read", str(path))
+    compressed = sorted(set(doc.extensionsRequired or []) & _COMPRESSION)
+    if compressed:
+        raise GLTFError(f"requires {', '.join(compressed)} (compressed buffers), which this reader "
+                        "does not decode; export without it", str(path), "extensionsRequired")
     return doc
 
 
