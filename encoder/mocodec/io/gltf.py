@@ -389,8 +389,8 @@ def _evaluate(ch: _Channel, t: np.ndarray) -> np.ndarray:
         val = ch.values
     if k == 1:
         return np.broadcast_to(val[0], (len(t), val.shape[1])).copy()
-    if ch.interpolation == "STEP":
-        return val[np.clip(np.searchsorted(times, t, side="right") - 1, 0, k - 1)]
+    if ch.interpolation == "STEP":  # a key a microsecond off (float32 times) is still reached
+        return val[np.clip(np.searchsorted(times, t + 1e-6, side="right") - 1, 0, k - 1)]
     i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, k - 2)
     dt = times[i + 1] - times[i]
     u = np.clip((t - times[i]) / dt, 0.0, 1.0)[:, None]
