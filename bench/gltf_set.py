@@ -81,9 +81,9 @@ def measure(motions, units, codec: str, tol: float) -> dict:
     matrix_max = 0.0
     for m, u in zip(motions, units):
         rot, trans, scale = asset.sample_frames(m.name, scales=True)
-        real = ~m.skeleton.is_virtual
-        a = matrix_positions(m.skeleton, m.rotations, m.translations, m.scales)[:, real]
-        b = matrix_positions(m.skeleton, rot, trans, scale)[:, real]
+        # Every node, the virtual end points too (they measure how the leaves are turned).
+        a = matrix_positions(m.skeleton, m.rotations, m.translations, m.scales)
+        b = matrix_positions(m.skeleton, rot, trans, scale)
         matrix_max = max(matrix_max, float(np.linalg.norm(a - b, axis=-1).max() * u.cm_per_unit))
     real_nodes = sum(int((~m.skeleton.is_virtual).sum()) * m.frame_count for m in motions)
     return {"asset_bytes": len(result.asset), "raw_acl_bytes": 40 * real_nodes,

@@ -24,10 +24,12 @@ from . import encode as _encode_module  # noqa: E402,F401
 from .api import Asset, Clip, encode  # noqa: E402
 from .codecs import UnsupportedMotion  # noqa: E402
 from .encode import EncodeError, encode_motions  # noqa: E402
+from .io import read_bvh, read_gltf  # noqa: E402
 from .load import load, load_all  # noqa: E402
 from .units import UnitsError  # noqa: E402
 from .motion import Motion, MotionError, Skeleton  # noqa: E402
 from .tolerance import Tolerance  # noqa: E402
 
 __all__ = ["Asset", "Clip", "EncodeError", "Motion", "MotionError", "SAMPLES", "Skeleton", "Tolerance",
-           "UnitsError", "UnsupportedMotion", "__version__", "encode", "encode_motions", "load", "load_all"]
+           "UnitsError", "UnsupportedMotion", "__version__", "encode", "encode_motions", "load", "load_all",
+           "read_bvh", "read_gltf"]
