@@ -73,8 +73,10 @@ def measure(motions, units, codec: str, tol: float) -> dict:
     started = time.perf_counter()
     try:
         result = encode_motions(motions, units, codec, Tolerance(tol))
-    except (UnsupportedMotion, EncodeError) as exc:
+    except UnsupportedMotion as exc:
         return {"refused": str(exc).splitlines()[0]}
+    except EncodeError as exc:
+        return {"failed": str(exc).splitlines()[0]}
     seconds = time.perf_counter() - started
     err = combine([c.error for c in result.clips])
     asset = Asset(result.asset)
@@ -165,8 +167,9 @@ def markdown(rows: list[dict]) -> str:
 def _row(r: dict) -> str:
     cells = [r["codec"], f"{r['tolerance_cm']:g}", r["set"], str(r["clips"]), f"{r['frames']:,}",
              f"{r['source_animation_bytes']:,}"]
-    if "refused" in r:
-        return "| " + " | ".join(cells + [f"refused: {r['refused'][:90]}"] + [""] * 6) + " |"
+    for key in ("refused", "failed"):
+        if key in r:
+            return "| " + " | ".join(cells + [f"{key}: {r[key][:90]}"] + [""] * 6) + " |"
     p99 = "—" if r["p99_cm"] != r["p99_cm"] else f"{r['p99_cm']:.3f}"
     cells += [f"{r['asset_bytes']:,}", f"{r['ratio_acl']:.1f}", f"{r['max_cm']:.3f}", p99,
               f"{r['mean_cm']:.3f}", f"{r['matrix_max_cm']:.3f}", f"{r['encode_seconds']:.0f}"]
