@@ -9,7 +9,7 @@ import pytest
 from gltf_build import arm, quat_z
 from mocodec import codecs
 from mocodec.codecs import UnsupportedMotion
-from mocodec.codecs.rma_reference import decode_keys
+from mocodec.codecs.rma_reference import decode_keys, decode_payload
 from mocodec.encode import encode_motions
 from mocodec.io import read_gltf
 from mocodec.kinematics import forward_kinematics, world_positions
@@ -61,6 +61,11 @@ def test_rma_stores_animated_scale_within_the_tolerance(tmp_path):
     header, descs = decode_keys(payload)
     assert 4 in [d["kind"] for d in descs]
     assert (header["modes"][1] >> 4) & 3 == 2
+    # The Python reference decoder of RMAL v2 reads the scale track as the C runtime does.
+    x = np.arange(m.frame_count, dtype=np.float64)
+    rot_py, trans_py, scale_py = decode_payload(payload, m.skeleton, x)
+    np.testing.assert_allclose(scale_py, scale, atol=1e-5)
+    np.testing.assert_allclose(trans_py, asset.sample_frames(0)[1], atol=1e-5)
 
 
 def test_rest_scale_costs_nothing_and_a_constant_scale_a_constant(tmp_path):

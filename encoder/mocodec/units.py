@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -159,7 +159,7 @@ def source_file(motion: Motion) -> str:
 
 def resolve_library_units(motions: Sequence[Motion], units: str | None = None,
                           cm_per_unit: float | None = None, strict: bool = False,
-                          warn=None) -> list[UnitsChoice]:
+                          warn: Callable[[str], None] | None = None) -> list[UnitsChoice]:
     """The unit of every clip of a library, one per skeleton layout.
 
     glTF clips are in metres (``units`` and ``cm_per_unit`` apply to BVH clips only). BVH
