@@ -4,7 +4,8 @@ Each skeleton becomes its node hierarchy (names, rest TRS; the virtual end point
 added are left out) with a skin over its joints (inverse bind matrices of the rest pose), so
 Blender and Godot import it as an armature; each clip becomes an animation on those nodes with
 a key on every frame (LINEAR), timed from the clip's source start (META ``start_s``). A node's
-translation, rotation or scale gets a channel only where the clip moves it from its rest.
+translation, rotation or scale gets a channel in every clip where any clip of its skeleton moves
+it from its rest.
 """
 from __future__ import annotations
 
@@ -62,6 +63,22 @@ def _rest_matrices(sk: Skeleton) -> np.ndarray:
     return world
 
 
+def _moved_paths(sk: Skeleton, m: Motion, nodes: dict[int, int]) -> set[tuple[int, str]]:
+    """(node, path) pairs whose float32 values leave the node's rest somewhere in the clip; the
+    first root's rotation when nothing does (an animation needs a channel)."""
+    out = set()
+    for i in nodes:
+        for path, values, rest in (("translation", m.translations[:, i], sk.offsets[i]),
+                                   ("rotation", m.rotations[:, i], sk.rest_rotations[i]),
+                                   ("scale", m.scales[:, i], sk.rest_scales[i])):
+            f32, rest32 = values.astype(np.float32), np.asarray(rest, dtype=np.float32)
+            if not (np.all(f32 == rest32) or (path == "rotation" and np.all(f32 == -rest32))):
+                out.add((i, path))
+    if not out:
+        out.add((min(nodes), "rotation"))
+    return out
+
+
 def gltf_document(skeletons: Sequence[Skeleton], clips: Sequence[tuple[int, Motion, float]],
                   skin_joints: dict[int, list[int]] | None = None):
     """A pygltflib document: the node hierarchy of every skeleton and one animation per clip.
@@ -97,20 +114,21 @@ def gltf_document(skeletons: Sequence[Skeleton], clips: Sequence[tuple[int, Moti
         # glTF matrices are column-major: the transpose's rows are the columns.
         skins.append(Skin(joints=[index[i] for i in joints], name=f"skeleton {s}",
                           inverseBindMatrices=blob.add(np.transpose(inverse, (0, 2, 1)).reshape(-1, 16))))
+    # A (node, path) that any clip of a skeleton moves from its rest gets a channel in every clip
+    # of that skeleton: engines keep a node's last pose when the next clip has no channel for it
+    # (Blender's actions, Godot's tracks), so every clip states what it holds.
+    moved = [set() for _ in skeletons]
+    for s, m, _ in clips:
+        moved[s] |= _moved_paths(skeletons[s], m, node_of[s])
     animations = []
     for s, m, start in clips:
-        sk = skeletons[s]
         times = blob.add(start + np.arange(m.frame_count) / m.frame_rate, with_bounds=True)
         channels, samplers = [], []
         for i, g in node_of[s].items():
-            rest = (sk.offsets[i], sk.rest_rotations[i], sk.rest_scales[i])
-            for path, values, r in (("translation", m.translations[:, i], rest[0]),
-                                    ("rotation", quat_make_continuous(m.rotations[:, i]), rest[1]),
-                                    ("scale", m.scales[:, i], rest[2])):
-                f32, rest32 = values.astype(np.float32), np.asarray(r, dtype=np.float32)
-                at_rest = np.all(f32 == rest32) or (path == "rotation" and np.all(f32 == -rest32))
-                # A node at rest needs no channel (the importer's default), but a clip needs one.
-                if at_rest and (channels or path != "rotation" or sk.parents[i] >= 0):
+            for path, values in (("translation", m.translations[:, i]),
+                                 ("rotation", quat_make_continuous(m.rotations[:, i])),
+                                 ("scale", m.scales[:, i])):
+                if (i, path) not in moved[s]:
                     continue
                 samplers.append(AnimationSampler(input=times, output=blob.add(values), interpolation="LINEAR"))
                 channels.append(AnimationChannel(sampler=len(samplers) - 1,
