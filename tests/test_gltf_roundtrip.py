@@ -67,6 +67,16 @@ def test_exported_glb_has_a_skin_and_no_virtual_nodes(encoded):
     names = [n["name"] for n in doc["nodes"]]
     assert not any(n.endswith("_end") for n in names)
     assert len(doc["animations"]) == 1 and doc["skins"] and len(doc["skins"][0]["joints"]) == 57
+    full = tmp / "all.glb"
+    assert run("decode", str(asset), "-o", str(full)).returncode == 0
+    everything = _glb_json(full)
+    # Per skeleton, every clip has a channel wherever any clip of that skeleton moves a node
+    # (an engine keeps the last clip's pose where the next has none).
+    roots = {}
+    for a in everything["animations"]:
+        targets = {(c["target"]["node"], c["target"]["path"]) for c in a["channels"]}
+        roots.setdefault(min(n for n, _ in targets), []).append(targets)
+    assert all(all(t == group[0] for t in group) for group in roots.values())
     assert {c["target"]["path"] for c in doc["animations"][0]["channels"]} == {"translation", "rotation", "scale"}
 
 
