@@ -21,6 +21,7 @@ def test_every_example_of_the_api_page_runs(capsys):
         exec(compile(block, str(DOC), "exec"), scope)  # noqa: S102 - the page's own examples
     out = capsys.readouterr().out
     assert "02_01 344 120.0" in out and "SimpleSkin 133" in out
+    assert "(133, 4, 4) (133, 4, 3) (133, 4, 3)" in out and "(38, 10) (5, 4, 10)" in out
     assert "codec 'spline' cannot store animated scale: clip 'ArmatureAction'" in out
 
 
