@@ -89,7 +89,7 @@ def curve_track(t: Track) -> CurveTrack:
 def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
     """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
     rows, constants, animated = node_modes(motion, tracks)
-    modes = [(rm, tm, 0) for rm, tm, _, _ in rows]
+    modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
     return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts)
 
 
@@ -101,7 +101,7 @@ def frame0_jumps(motion: Motion, cm_per_unit: float) -> bool:
     files start with a T-pose the converter added): the curves then detach frame 0."""
     if motion.frame_count < 3:
         return False
-    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2])
+    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2], motion.scales[:2])
     return bool(np.max(np.linalg.norm(pos[1] - pos[0], axis=-1)) * cm_per_unit > JUMP_CM)
 
 
