@@ -237,8 +237,8 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
 def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int, int, int]], list[float], list[Track]]:
     """How each node is stored, shared by the key-frame codecs: per node (rotation_mode,
     translation_mode, rotation_index, translation_index) as docs/FORMAT.md's SPLN node table
-    (0 rest/identity, 1 constant, 2 animated), the f32 constants, and the animated tracks in
-    node order (rotation before translation)."""
+    (0 the node's rest rotation / translation, 1 constant, 2 animated), the f32 constants, and
+    the animated tracks in node order (rotation before translation)."""
     sk = motion.skeleton
     animated = [t for t in tracks if t.keys is not None]
     index = {id(t): i for i, t in enumerate(animated)}
@@ -251,7 +251,7 @@ def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int
         rm, ri, tm, ti = 0, 0, 0, 0
         if rot is not None and rot.keys is not None:
             rm, ri = 2, index[id(rot)]
-        elif rot is not None and not np.array_equal(rot.constant, [0, 0, 0, 1]):
+        elif rot is not None and not np.array_equal(rot.constant, f32_exact(sk.rest_rotations[i])):
             rm, ri = 1, len(constants)
             constants.extend(rot.constant.tolist())
         if tr is not None and tr.keys is not None:
@@ -439,9 +439,9 @@ class KeyframeFitter:
                     self._fit(t)
                 local_q = _track_recon(t)
             elif comp.has_rot[i]:
-                local_q = self.motion.rotations[:, i]  # exactly identity on every frame
+                local_q = self.motion.rotations[:, i]  # exactly the rest rotation on every frame
             else:
-                local_q = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (self.frames, 4))
+                local_q = np.broadcast_to(f32_exact(sk.rest_rotations[i]), (self.frames, 4))
             rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
             prev = self._decoded
             moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i]) and np.array_equal(prev[1][:, i], pos_d[:, i]))
@@ -459,8 +459,8 @@ class KeyframeFitter:
         for i, rot, b in zip(comp.track_nodes, comp.track_is_rot, budgets0):
             if rot:
                 q = self.motion.rotations[:, i]
-                if np.all(q == q[0]) and np.array_equal(q[0], [0.0, 0.0, 0.0, 1.0]):
-                    continue  # identity on every frame: nothing to store
+                if np.all(q == f32_exact(sk.rest_rotations[i])):
+                    continue  # the rest rotation on every frame (rotation mode 0): nothing to store
                 t = Track(i, KIND_MRP, np.zeros((self.frames, 3)), None, np.zeros(4), np.zeros(3))
             else:
                 tr = self.motion.translations[:, i]

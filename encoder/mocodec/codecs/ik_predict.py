@@ -41,7 +41,7 @@ from ..tolerance import ClipCheck, Tolerance, ToleranceNotMet, within
 from ..units import skeleton_height
 from . import ClipResult
 
-ROT_IDENTITY, ROT_CONSTANT, ROT_CODED = 0, 1, 2
+ROT_REST, ROT_CONSTANT, ROT_CODED = 0, 1, 2
 TRANS_REST, TRANS_CODED = 0, 1
 HEADER = 48
 NODE_RECORD = 32
@@ -198,7 +198,9 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
         if not sk.rotation_order(i):
             continue
         if np.all(rot[:, i] == rot[0, i]):
-            rot_mode[i] = ROT_IDENTITY if np.array_equal(rot[0, i], [0.0, 0.0, 0.0, 1.0]) else ROT_CONSTANT
+            # Mode 0 is the node's rest rotation (format 2), not the identity.
+            rest = np.asarray(sk.rest_rotations[i], dtype=np.float32)
+            rot_mode[i] = ROT_REST if np.array_equal(rot[0, i], rest) else ROT_CONSTANT
         else:
             rot_mode[i] = ROT_CODED
     trans_mode = np.where(np.all(tr == sk.offsets[None], axis=(0, 2)), TRANS_REST, TRANS_CODED)
