@@ -6,11 +6,12 @@ import numpy as np
 
 from .motion import Motion, Skeleton
 from .rotations import quat_make_continuous, quat_normalize
-from .runtime import Asset
+from .runtime import NODE_VIRTUAL, Asset
 
 
 def skeleton_from_asset(asset: Asset, index: int) -> tuple[Skeleton, float]:
-    """The skeleton stored in an asset and its centimetres per unit."""
+    """The skeleton stored in an asset (the whole rest pose, end sites and virtual points) and
+    its centimetres per unit."""
     nodes = asset.nodes(index)
     _, cm_per_unit = asset.skeleton_info(index)
     sk = Skeleton(
@@ -19,6 +20,9 @@ def skeleton_from_asset(asset: Asset, index: int) -> tuple[Skeleton, float]:
         offsets=[n.rest_offset for n in nodes],
         channels=[n.channels for n in nodes],
         is_end_site=[n.is_end_site for n in nodes],
+        rest_rotations=[n.rest_rotation for n in nodes],
+        rest_scales=[n.rest_scale for n in nodes],
+        is_virtual=[n.kind == NODE_VIRTUAL for n in nodes],
     )
     return sk, cm_per_unit
 
