@@ -222,7 +222,7 @@ static mcd_result check_clips(mcd_asset* a, uint32_t clip_section, int full) {
         uint32_t need = mcd_rd_u32(r + 40);
         mcd_result res;
         if (!mcd_valid_name(d + a->clip_strings, a->clip_strings_size, mcd_rd_u32(r), 1)) return MCD_ERROR_MALFORMED;
-        if (mcd_rd_u32(r + 24) < 1) return MCD_ERROR_MALFORMED;
+        if (mcd_rd_u32(r + 24) < 1 || mcd_rd_u32(r + 24) > MCD_MAX_FRAMES) return MCD_ERROR_MALFORMED;
         if (!mcd_finite(rate) || !(rate > 0.0f) || rate > MCD_MAX_FRAME_RATE) return MCD_ERROR_MALFORMED;
         expect = (float)((double)(mcd_rd_u32(r + 24) - 1u) / (double)rate);
         tol = 1e-4f * (expect > 1.0f ? expect : 1.0f);
