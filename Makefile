@@ -1,14 +1,23 @@
 # mocodec: the two set-up commands of README.md, and what they stand on.
 #   make demo   encode + decode the bundled sample clips through the C runtime, print ratio and error
-#   make test   every test: C (gcc, clang, ASan/UBSan, fuzz smoke), Python, engine bindings
-# Both install what they need (a Python venv in .venv; clang and the engine tools from apt).
+#   make test   every test: C (gcc, clang, ASan/UBSan, fuzz smoke), Python, engine bindings, web
+#   make web    rebuild what `mocodec view` ships: the wasm runtime and the viewer's bundle
+#   make bench  every codec beside ACL 2.1 in one process: bytes, engine bytes, open, µs per pose
+#               (bench/engine_bench.py; BENCH_ASSETS="rma:1,0.02 spline:1" ROUNDS=11 SHARED=../shared)
+#   make bench-rd  the rate-distortion sweeps of rma and spline, and docs/rd_curve.png
+# demo and test install what they need (a Python venv in .venv; clang and the engine tools from apt);
+# bench also needs a C++17 compiler.
 
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 FUZZ_SECONDS ?= 20
+# bench: codec:tolerances (cm) to measure, timed rounds, and where the dev clips and ACL live
+BENCH_ASSETS ?= rma:1,0.02 spline:1 fk-wavelet:1 ik-predict:1 neural:1
+ROUNDS ?= 11
+SHARED ?= ../shared
 
-.PHONY: demo test venv test-c test-python test-engines bench clean
+.PHONY: demo test web venv test-c test-python test-engines bench bench-rd clean
 
 $(VENV)/.installed: encoder/pyproject.toml bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -25,10 +34,22 @@ demo: venv
 test: venv
 	@bash tests/run_all.sh
 
+# The page's parts, in encoder/mocodec/view/static/ (committed: users need neither clang nor node).
+VIEW_STATIC := encoder/mocodec/view/static
+web:
+	$(MAKE) -C runtime_c wasm
+	install -m 644 runtime_c/build/wasm/mocodec.wasm $(VIEW_STATIC)/mocodec.wasm
+	cd viewer && { [ -d node_modules ] || npm ci --no-audit --no-fund --silent; } && node build.mjs
+
+# Encodes (cached in bench/results/assets/), builds and runs the driver; the timed part holds
+# flock /tmp/mocodec-bench.lock. Writes bench/results/engine_bench/<UTC time>.md and .json.
 bench: venv
+	MOCODEC_SHARED=$(SHARED) $(PY) bench/engine_bench.py --assets $(BENCH_ASSETS) --rounds $(ROUNDS)
+
+bench-rd: venv
 	$(PY) bench/run_bench.py --codec rma --tolerances 0.02 0.1 0.5 1 2 3 6
 	$(PY) bench/run_bench.py --codec spline --tolerances 0.02 0.1 0.5 1 2 3 6
 	$(PY) bench/rd_plot.py
 
 clean:
-	rm -rf $(VENV) out runtime_c/build bench/results/*.mcd bench/results/sample_speed
+	rm -rf $(VENV) out runtime_c/build bench/results/*.mcd bench/results/build

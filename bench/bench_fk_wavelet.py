@@ -6,7 +6,7 @@ Writes bench/results/fk_wavelet.md and .json:
 
 1. per tolerance: bytes (payloads and asset), max / p99 / mean error through the C runtime,
    encode time, for fk-wavelet and spline on the same clips;
-2. C decode µs per pose (bench/sample_speed.c: sequential and random access) and the resident
+2. C decode µs per pose (``engine_bench speed``: sequential and random access) and the resident
    memory each asset asks for;
 3. progressive decoding: error of every prefix of the band streams of each clip (1 cm);
 4. end effectors vs inner joints at equal size: the tolerance-driven fk-wavelet payload against
@@ -37,7 +37,7 @@ from mocodec.io import read_bvh  # noqa: E402
 from mocodec.kinematics import forward_kinematics  # noqa: E402
 from mocodec.tolerance import Tolerance, effector_nodes  # noqa: E402
 from mocodec.units import resolve_units  # noqa: E402
-from run_bench import build_speed_tool, speed  # noqa: E402
+from engine_bench import RUNTIME_DEFAULT_FLAGS, build_driver, mocodec_speed  # noqa: E402
 
 DEV = REPO.parent / "shared" / "data" / "cmu"
 CM = 5.6444
@@ -128,7 +128,7 @@ def main() -> int:
     units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
     out: dict = {"clips": args.clips, "tolerances": {}, "progressive": {}, "chains": {}, "roi": {}}
     tmp = Path(tempfile.mkdtemp(prefix="fkw_bench_"))
-    exe = build_speed_tool(tmp)
+    exe = build_driver(RUNTIME_DEFAULT_FLAGS, acl=False)
     fk_payloads = {}
     for tol in args.tolerances:
         entry = {}
@@ -137,7 +137,7 @@ def main() -> int:
             path = tmp / f"{codec}_{tol}.mcd"
             path.write_bytes(r.asset)
             entry[codec] = {"asset_bytes": len(r.asset), "encode_seconds": seconds, "clips": rows,
-                            "speed": speed(exe, path, args.runs)}
+                            "speed": mocodec_speed(exe, path, args.runs)}
             if codec == "fk-wavelet":
                 fk_payloads[tol] = r
         out["tolerances"][str(tol)] = entry
@@ -174,7 +174,7 @@ def report(out: dict) -> str:
              "Measured by `bench/bench_fk_wavelet.py` (errors through the C runtime, every frame and "
              "node; 1 unit = 5.6444 cm). Bytes are clip payloads; the asset adds the skeleton, clip "
              "table and META.", "",
-             "Notes: decode µs come from `bench/sample_speed.c` (median of runs, one thread) on a "
+             "Notes: decode µs come from `bench/engine_bench.cpp speed` (median of runs, one thread) on a "
              "2-core machine shared with other jobs, so they move between runs (spline's local "
              "sequential figure read 0.83 µs in one run and 3.97 µs in the next); compare within "
              "one table only. fk-wavelet's resident bytes are every channel of every clip as float32 "

@@ -5,7 +5,7 @@
 Each variant encodes every clip into one asset at the tolerance (through the C runtime's
 check, as ``mocodec encode`` does) and reports bytes, max / p99 / mean world error (cm), encode
 seconds, and — for the block-length sweep — microseconds per pose in C, sequential and random
-access (bench/sample_speed.c: random access is the seek cost). The default variant also gets the
+access (``engine_bench speed``: random access is the seek cost). The default variant also gets the
 end-effector vs inner-joint mean error. Writes ``results/ik_predict_variants.{json,md}``.
 """
 from __future__ import annotations
@@ -22,7 +22,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "encoder"))
 sys.path.insert(0, str(HERE))
 
-from run_bench import DEV_SET, SAMPLES, build_speed_tool, speed  # noqa: E402
+from engine_bench import RUNTIME_DEFAULT_FLAGS, build_driver, mocodec_speed  # noqa: E402
+from run_bench import DEV_SET, SAMPLES  # noqa: E402
 
 from mocodec.encode import encode_motions  # noqa: E402
 from mocodec.io import read_bvh  # noqa: E402
@@ -67,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     motions = [read_bvh(p) for p in sorted(args.data.glob("*.bvh"))]
     units = [resolve_units(m.skeleton, "cmu", None) for m in motions]
-    exe = build_speed_tool(args.out)
+    exe = build_driver(RUNTIME_DEFAULT_FLAGS, acl=False)
     variants = [{}] + [v for s in args.sweep for v in SWEEPS[s]]
     rows = []
     for options in variants:
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         if not options or "block_frames" in options:
             path = args.out / "ik_predict_variant.mcd"
             path.write_bytes(result.asset)
-            sp = speed(exe, path, args.runs)
+            sp = mocodec_speed(exe, path, args.runs)
             row.update({k: v for k, v in sp.items() if k.startswith("us_")})
             row["scratch_bytes"] = sp["scratch_bytes"]
             path.unlink()

@@ -13,7 +13,7 @@
    clips): every clip of the set in one asset per codec (rma is a library codec, so sets are
    compared by their totals), per-clip payload bytes, errors through the runtime, training
    seconds, windows and K per window.
-3. C evaluation: microseconds per pose (bench/sample_speed.c), sequential and random, per asset.
+3. C evaluation: microseconds per pose (``engine_bench speed``), sequential and random, per asset.
 
 Writes bench/results/<name>.json and .md (--name, default "neural").
 """
@@ -22,9 +22,7 @@ from __future__ import annotations
 import argparse
 import ast
 import json
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -33,7 +31,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(REPO / "encoder"))
+sys.path.insert(0, str(HERE))
 
+from engine_bench import RUNTIME_DEFAULT_FLAGS, build_driver, mocodec_speed  # noqa: E402
 from mocodec import codecs  # noqa: E402
 from mocodec.codecs import neural as N  # noqa: E402
 from mocodec.encode import EncodeError, encode_motions  # noqa: E402
@@ -112,16 +112,8 @@ def codec_set(motions: list[Motion], codec: str, tol: float, keep: Path, speed: 
     path.write_bytes(r.asset)  # kept (git-ignored) so the speed can be re-measured on an idle machine
     row["asset"] = str(path)
     if speed is not None:
-        out = subprocess.run([str(speed), str(path), "7"], capture_output=True, text=True, check=True)
-        row["speed"] = json.loads(out.stdout)
+        row["speed"] = mocodec_speed(speed, path, 7)
     return row
-
-
-def build_speed(tmp: Path) -> Path | None:
-    exe = tmp / "sample_speed"
-    cmd = ["cc", "-std=c99", "-O2", f"-I{REPO / 'runtime_c' / 'include'}", str(HERE / "sample_speed.c"),
-           *map(str, sorted((REPO / "runtime_c" / "src").glob("*.c"))), "-lm", "-o", str(exe)]
-    return exe if subprocess.run(cmd).returncode == 0 else None
 
 
 def main() -> None:
@@ -158,14 +150,13 @@ def main() -> None:
     motions = [read_bvh(dev / f"{s}.bvh") for s in stems]
     compare = [c for c in args.codecs if c in codecs.available()]
     if motions:
-        with tempfile.TemporaryDirectory() as td:
-            speed = build_speed(Path(td))
-            keep = args.out / args.name
-            args.out.mkdir(parents=True, exist_ok=True)
-            for tol in args.tolerances:
-                for c in compare:
-                    results["sets"].append(codec_set(motions, c, tol, keep, speed, options if c == "neural" else {}))
-                    _write(args, results)
+        speed = build_driver(RUNTIME_DEFAULT_FLAGS, acl=False)
+        keep = args.out / args.name
+        args.out.mkdir(parents=True, exist_ok=True)
+        for tol in args.tolerances:
+            for c in compare:
+                results["sets"].append(codec_set(motions, c, tol, keep, speed, options if c == "neural" else {}))
+                _write(args, results)
     print(report(results))
 
 

@@ -6,7 +6,7 @@
 For each tolerance: encode every clip into one asset, measure through the C runtime the max,
 p99 and mean world-space error (cm) on every frame, the asset's bytes and ratios in both
 conventions, encode time, and microseconds per sampled pose in C (sequential and random
-access, median of many runs, bench/sample_speed.c). Writes ``<out>/<codec>.json`` and
+access, median of many runs, ``engine_bench speed``). Writes ``<out>/<codec>.json`` and
 ``<out>/<codec>.md``. ACL's bytes come from ../shared/ACL_REFERENCE.md (measured on these
 machines on the same 35 clips); on another clip set that column is left out.
 """
@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -26,6 +25,7 @@ sys.path.insert(0, str(REPO / "encoder"))
 sys.path.insert(0, str(HERE))
 
 import acl_reference  # noqa: E402
+from engine_bench import RUNTIME_DEFAULT_FLAGS, build_driver, mocodec_speed  # noqa: E402
 from mocodec.encode import encode_motions  # noqa: E402
 from mocodec.io import read_bvh  # noqa: E402
 from mocodec.metrics import combine  # noqa: E402
@@ -34,21 +34,6 @@ from mocodec.units import resolve_units  # noqa: E402
 
 DEV_SET = REPO.parent / "shared" / "data" / "cmu"
 SAMPLES = REPO / "encoder" / "mocodec" / "samples"
-
-
-def build_speed_tool(out: Path) -> Path:
-    """Compile bench/sample_speed.c against the runtime sources (-O2, like an engine build)."""
-    exe = out / "sample_speed"
-    sources = sorted(str(p) for p in (REPO / "runtime_c" / "src").glob("*.c"))
-    cmd = ["cc", "-std=c99", "-O2", "-I", str(REPO / "runtime_c" / "include"),
-           str(HERE / "sample_speed.c"), *sources, "-lm", "-o", str(exe)]
-    subprocess.run(cmd, check=True)
-    return exe
-
-
-def speed(exe: Path, asset: Path, runs: int) -> dict:
-    r = subprocess.run([str(exe), str(asset), str(runs)], check=True, capture_output=True, text=True)
-    return json.loads(r.stdout)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     names = {m.name for m in motions}
     acl = acl_reference.load()
     whole_dev_set = acl is not None and names == set(acl.per_clip)
-    exe = build_speed_tool(args.out)
+    exe = build_driver(RUNTIME_DEFAULT_FLAGS, acl=False)  # the runtime at -O2, like an engine build
     frames = sum(m.frame_count for m in motions)
     print(f"{len(motions)} clips, {frames} frames from {args.data}; codec {args.codec}", file=sys.stderr)
 
@@ -102,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         asset_path = args.out / (f"{stem}_{tol:g}cm.mcd" if variance is None else f"{stem}_v{variance:g}.mcd")
         asset_path.write_bytes(result.asset)
         err = combine([c.error for c in result.clips])
-        sp = speed(exe, asset_path, args.runs)
+        sp = mocodec_speed(exe, asset_path, args.runs)
         row = {
             "tolerance_cm": tol, **({"pca_variance": variance, **result.settings} if variance else {}),
             "asset_bytes": len(result.asset),

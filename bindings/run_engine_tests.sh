@@ -3,7 +3,8 @@
 #   csharp   the C# P/Invoke core + the Unity package's NUnit tests, mono + nunit-console 2.6
 #   unity    the package's UnityEngine/UnityEditor code parsed by mcs; the UPM tarball packed
 #            with the Linux plugin and its layout checked (.meta files, asmdef references)
-#   native   bindings/native CMake preset linux-x86_64 (the other presets need their hosts)
+#   native   runtime_c's CMake preset linux-x86_64, the engine plugin build (runtime_c/test_platforms.sh
+#            builds and runs the cross-built ones: Linux aarch64, Windows x86-64)
 #   godot3   the GDNative binding tested in the real headless engine, godot3-server 3.2.3
 #   godot4   the GDExtension built (gcc, clang) and driven by a stand-in host
 # Installs the Debian packages and fetches the crates it needs when they are missing (quietly
@@ -105,10 +106,11 @@ unity_check() {
 if have mcs; then run unity unity_check; else skip unity "mcs not installable here"; fi
 
 native_check() {
-    cmake --preset linux-x86_64 -S "$HERE/native" > /dev/null &&
-        cmake --build "$MCD_BUILD/native/linux-x86_64" -- -s > /dev/null &&
-        [ "$(nm -D --defined-only "$MCD_BUILD/native/linux-x86_64/libmocodec.so" | grep -c ' T mcd_')" -ge 14 ] &&
-        echo "native: built preset linux-x86_64 (libmocodec.so exports the mcd_ API)" &&
+    local build="$MCD_RUNTIME/build/cmake/linux-x86_64"
+    cmake -S "$MCD_RUNTIME" --preset linux-x86_64 > /dev/null &&
+        cmake --build "$build" -- -s > /dev/null &&
+        ctest --test-dir "$build" -R '^library_exports$' --no-tests=error --output-on-failure &&
+        echo "native: built preset linux-x86_64 (libmocodec.so exports exactly the mcd_ API)" &&
         echo "native: 1 passed, 0 failed" && return 0
     echo "native: 0 passed, 1 failed"
     return 1

@@ -7,16 +7,8 @@ cd "$(dirname "$0")/.."
 need_apt=()
 command -v clang >/dev/null || need_apt+=(clang)
 [ -n "$(ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a 2>/dev/null)" ] || need_apt+=(libclang-rt-14-dev)
-if [ ${#need_apt[@]} -gt 0 ]; then
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-    echo "== installing ${need_apt[*]} (apt)"
-    apt-get update -qq >/dev/null
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
-  else
-    echo "!! missing ${need_apt[*]} and cannot install them (not root or no apt)" >&2
-    exit 1
-  fi
-fi
+source tests/apt_need.sh
+apt_need "${need_apt[@]}" || exit 1
 
 failed=0
 step() { echo; echo "== $*"; }
@@ -27,8 +19,17 @@ make -s -C runtime_c test || failed=1
 step "C runtime: fuzz smoke (${FUZZ_SECONDS:-20} s each target)"
 make -s -C runtime_c fuzz FUZZ_SECONDS="${FUZZ_SECONDS:-20}" || failed=1
 
+step "C runtime on every platform here: Linux x86-64, aarch64 (qemu), s390x big-endian (qemu), Windows x86-64 (wine); CMake package and consumers"
+make -s -C runtime_c platforms || failed=1
+
 step "Python: encoder, binding, CLI, cross-checks with the C runtime"
 .venv/bin/python -m pytest -q -ra tests || failed=1
+
+step "Web: the runtime in wasm (node tests against the native runtime), the viewer in headless Chromium"
+web_fixtures=$(mktemp -d)
+FIXTURES="$web_fixtures" bindings/web/run_tests.sh || failed=1
+FIXTURES="$web_fixtures" viewer/run_tests.sh || failed=1
+rm -rf "$web_fixtures"
 
 if [ -x bindings/run_engine_tests.sh ]; then
   step "Engine bindings: C# (mono NUnit), Godot 3 headless, GDExtension build"

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 from mocodec_runtime._native import lib
 
-from mocodec import codecs
+from mocodec import codecs, runtime
 from mocodec.container import AssetBuilder, ClipEntry
 from mocodec.encode import encode_motions
 from mocodec.io import read_bvh
+from mocodec.motion import Motion, Skeleton
 from mocodec.runtime import Asset, Result, validate
 from mocodec.tolerance import Tolerance, ToleranceNotMet
 from mocodec.units import resolve_units
@@ -74,10 +75,19 @@ def test_settings_type_and_unknown_settings(codec):
 
 
 def test_the_container_takes_ids_kinds_and_versions_from_the_registry(monkeypatch, sample_paths):
-    """Change the registry's row for spline: the container writes what the row says."""
+    """Change the registry's row for spline: the container writes what the row says (and the
+    scratch figure the runtime gives for the clip, here asked of a stand-in: the runtime does
+    not know codec 42)."""
     m = read_bvh(sample_paths[2]).slice(0, 4)
     moved = dataclasses.replace(codecs.get("spline"), id=42, section_kind=b"TEST", section_version=9)
     monkeypatch.setitem(codecs._BY_NAME, "spline", moved)
+    asked = []
+
+    def scratch(codec, section, offset, size, skeleton, frames, rate):
+        asked.append((codec, bytes(section[offset:offset + size]), frames))
+        return 4096
+
+    monkeypatch.setattr(runtime, "clip_scratch_size", scratch)
     b = AssetBuilder()
     b.add_skeleton(m.skeleton, 5.6444)
     b.add_clip(ClipEntry(m.name, 0, "spline", b"\0" * 8, m.frame_count, m.frame_rate))
@@ -86,6 +96,8 @@ def test_the_container_takes_ids_kinds_and_versions_from_the_registry(monkeypatc
     assert (b"TEST", 9) in [(k, v) for k, v, _, _ in table]
     clip = next(off for k, _, off, _ in table if k == b"CLIP")
     assert struct.unpack_from("<I", data, clip + 8 + 8)[0] == 42
+    assert asked == [(42, b"\0" * 8, m.frame_count)]
+    assert struct.unpack_from("<I", data, clip + 8 + 40)[0] == 4096
 
 
 def test_one_tolerance_error_for_every_codec(sample_paths):
@@ -136,7 +148,37 @@ def test_runtime_reads_the_registry_kind_and_version(sample_paths, codec):
     newer = bytearray(data)
     struct.pack_into("<I", newer, at[0] + 4, codec.section_version + 1)
     assert validate(bytes(newer), skip_checksum=True) == Result.UNSUPPORTED
+    # The section relabelled as another codec's (kind and version): the clip record names a
+    # section of the wrong kind.
     other = next(c for c in codecs.CODECS if c is not codec)
     moved = bytearray(data)
-    moved[at[0]:at[0] + 4] = other.section_kind
+    struct.pack_into("<4sI", moved, at[0], other.section_kind, other.section_version)
     assert validate(bytes(moved), skip_checksum=True) == Result.MALFORMED
+
+
+def _held_joint(sample_paths) -> Motion:
+    """The first 7 nodes of 09_11 (Hips to the left toe, 30 frames) with a rest rotation on
+    every joint (its pose on frame 15) and LHipJoint held at the identity on every frame while
+    its rest rotation is 0.4 rad about (1, 2, -0.5): a glTF joint that the clip turns away
+    from its bind pose and keeps there."""
+    m = read_bvh(sample_paths[2]).slice(0, 30)
+    n, sk = 7, m.skeleton
+    rotations = m.rotations[:, :n].copy()
+    rotations[:, 1] = [0.0, 0.0, 0.0, 1.0]
+    rest = rotations[15].copy()
+    axis = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    rest[1] = [*(axis * np.sin(0.2)), np.cos(0.2)]
+    skeleton = Skeleton(sk.names[:n], sk.parents[:n], sk.offsets[:n], list(sk.channels[:n]), sk.is_end_site[:n],
+                        rest_rotations=rest)
+    return Motion(skeleton, rotations, m.translations[:, :n].copy(), m.frame_time, "held")
+
+
+@pytest.mark.parametrize("codec", ["spline", "rma", "ik-predict"])
+def test_a_joint_held_off_its_rest_rotation_is_encoded(sample_paths, codec):
+    """Rotation mode 0 means the rest rotation now (format 2), not the identity: a joint at
+    the identity whose rest rotation is not must be coded, and the tolerance met."""
+    m = _held_joint(sample_paths)
+    result = encode_motions([m], [resolve_units(m.skeleton, "cmu", None)], codec, Tolerance(1.0))
+    rot, _ = Asset(result.asset).sample_frames(0)
+    assert np.abs(np.abs(rot[:, 1, 3]) - 1.0).max() <= 1e-3  # LHipJoint at the identity
+    assert result.max_error_cm <= 1.0

@@ -7,10 +7,13 @@ import zlib
 import numpy as np
 import pytest
 
+from mocodec import codecs
 from mocodec.container import AssetBuilder, ClipEntry, ContainerError, read_summary
 from mocodec.decode import skeleton_from_asset
 from mocodec.io import read_bvh
-from mocodec.runtime import Asset, Result, RuntimeResultError, validate
+from mocodec.runtime import Asset, Result, RuntimeResultError, clip_scratch_size, validate
+
+SCRATCH_HEADER = 64  # bytes every scratch starts with (the runtime's MCD_SCRATCH_HEADER_SIZE)
 
 
 def _asset(sample_paths):
@@ -27,16 +30,75 @@ def test_layout_rules(sample_paths):
     _, data = _asset(sample_paths)
     assert data[:8] == b"\x89MCD\r\n\x1a\n"
     major, minor, header, total, crc, count, flags = struct.unpack_from("<HHIIIII", data, 8)
-    assert (major, minor, header, flags) == (1, 0, 32, 0)
+    assert (major, minor, header, flags) == (2, 0, 32, 0)
     assert total == len(data) and total % 16 == 0
     assert crc == zlib.crc32(data[24:]) & 0xFFFFFFFF
     expect = (32 + 16 * count + 15) // 16 * 16
+    versions = {b"SKEL": 2, b"CLIP": 2, b"META": 1, b"SPLN": codecs.get("spline").section_version}
     for i in range(count):
         kind, version, off, size = struct.unpack_from("<4sIII", data, 32 + 16 * i)
-        assert off == expect and off % 16 == 0 and version == 1
+        assert off == expect and off % 16 == 0 and version == versions[kind]
         expect = (off + size + 15) // 16 * 16
     assert expect == total
     assert validate(data) == Result.OK
+
+
+def _section(data: bytes, kind: bytes, nth: int = 0) -> tuple[int, int, int]:
+    """(index, offset, size) of the nth section of ``kind``."""
+    count = struct.unpack_from("<I", data, 24)[0]
+    found = [(i, *struct.unpack_from("<II", data, 32 + 16 * i + 8)) for i in range(count)
+             if data[32 + 16 * i:36 + 16 * i] == kind]
+    return found[nth]
+
+
+def test_skel_version_2_records(sample_paths):
+    """SKEL v2: node count, reserved 0, cm per unit, string block at 16 + 56 N; per node parent,
+    name offset, rest translation (+8), rotation (+20), scale (+36), kind (+48), channel count
+    and codes padded with 0xFF."""
+    motions, data = _asset(sample_paths)
+    for s, m in enumerate(motions):
+        sk = m.skeleton
+        _, off, size = _section(data, b"SKEL", s)
+        n, reserved, cm, strings = struct.unpack_from("<IIfI", data, off)
+        assert (n, reserved, strings) == (sk.node_count, 0, 16 + 56 * sk.node_count)
+        assert cm == pytest.approx(5.6444, rel=1e-6)
+        block = data[off + strings:off + size]
+        for i in range(n):
+            rec = struct.unpack_from("<iI3f4f3fBB6B", data, off + 16 + 56 * i)
+            parent, name_at, t, r, sc = rec[0], rec[1], rec[2:5], rec[5:9], rec[9:12]
+            kind, channels, codes = rec[12], rec[13], rec[14:20]
+            assert parent == sk.parents[i]
+            assert block[name_at:block.index(b"\0", name_at)].decode() == sk.names[i]
+            assert np.allclose(t, sk.offsets[i], atol=1e-5)
+            assert r == (0.0, 0.0, 0.0, 1.0) and sc == (1.0, 1.0, 1.0)  # BVH: no rest rotation or scale
+            assert kind == (1 if sk.is_end_site[i] else 0)
+            assert channels == len(sk.channels[i])
+            assert codes == tuple(sk.channels[i]) + (0xFF,) * (6 - channels)
+
+
+def test_clip_version_2_records(sample_paths):
+    """CLIP v2: 48-byte records; the scratch a clip needs (+40) is the runtime's own figure,
+    and the clip info reports it (plus the scratch header) and the payload's byte range."""
+    motions, data = _asset(sample_paths)
+    asset = Asset(data)
+    index, off, _ = _section(data, b"CLIP")
+    count, strings = struct.unpack_from("<II", data, off)
+    assert (count, strings) == (len(motions), 8 + 48 * len(motions))
+    spln_index, spln_off, spln_size = _section(data, b"SPLN")
+    skels = [_section(data, b"SKEL", s) for s in range(asset.skeleton_count)]
+    for c, m in enumerate(motions):
+        (name_at, skel, codec, section, payload_off, payload_size, frames, rate, duration, clip_flags, need,
+         reserved) = struct.unpack_from("<IIIIIIIffIII", data, off + 8 + 48 * c)
+        assert (codec, section, frames, clip_flags, reserved) == (codecs.get("spline").id, spln_index, m.frame_count, 0, 0)
+        assert payload_off % 4 == 0 and payload_off + payload_size <= spln_size
+        _, skel_off, skel_size = skels[skel]
+        assert need % 16 == 0 and need == clip_scratch_size(
+            codec, data[spln_off:spln_off + spln_size], payload_off, payload_size,
+            data[skel_off:skel_off + skel_size], frames, rate)
+        info = asset.clips[c]
+        assert info.scratch_size == SCRATCH_HEADER + need  # no contacts section here
+        assert (info.data_offset, info.data_size) == (spln_off + payload_off, payload_size)
+    assert asset.scratch_size == max(c.scratch_size for c in asset.clips)
 
 
 def test_skeletons_and_clips_round_trip(sample_paths):
@@ -89,3 +151,15 @@ def test_runtime_rejects_what_python_misbuilt(sample_paths):
     assert validate(data[:-1]) == Result.TRUNCATED
     with pytest.raises(ContainerError):
         read_summary(b"not an asset at all, clearly")
+
+
+def test_skeleton_from_asset_keeps_the_rest_pose(repo_root):
+    """SKEL v2 read back by the tools: rest rotations, rest scales and virtual points survive
+    (the golden glTF-like leg of tests/golden/make_golden.py)."""
+    asset = Asset((repo_root / "tests" / "golden" / "v2" / "spline_rest_pose.mcd").read_bytes())
+    nodes = asset.nodes(1)
+    sk, _ = skeleton_from_asset(asset, 1)
+    assert np.array_equal(sk.rest_rotations, np.array([n.rest_rotation for n in nodes]))
+    assert np.array_equal(sk.rest_scales, np.array([n.rest_scale for n in nodes]))
+    assert list(sk.is_virtual) == [n.kind == 2 for n in nodes] and sk.is_virtual[-1]
+    assert not sk.is_end_site.any()

@@ -1,6 +1,7 @@
-"""The rma codec: a library in one RMAL section, the tolerance promise on every frame, C vs
-Python agreement, sequential vs random access, resident memory as documented, and bad bytes
-rejected at open. (Synthetic motion shapes run through it in test_spline.py.)"""
+"""The rma codec (RMAL version 2, sampled in place): a library in one RMAL section, the
+tolerance promise on every frame, C vs Python reference agreement, sequential = random =
+backward access bit for bit, each clip's bytes where its clip info says, and bad bytes
+rejected at open or decoded finite. (Synthetic motion shapes run through it in test_spline.py.)"""
 from __future__ import annotations
 
 import struct
@@ -8,14 +9,21 @@ import struct
 import numpy as np
 import pytest
 
-from mocodec.codecs.rma import resident_bytes
-from mocodec.codecs.rma_reference import decode_payload
+from mocodec.codecs.rma_reference import decode_keys, decode_payload
+from mocodec.codecs.rma import section_prefix
 from mocodec.encode import EncodeError, encode_motions
 from mocodec.io import read_bvh
 from mocodec.kinematics import forward_kinematics
 from mocodec.runtime import Asset, RuntimeResultError
 from mocodec.tolerance import Tolerance
 from mocodec.units import resolve_units
+from runtime_accepts import runtime_accepts
+
+CM = 5.6444  # cm per unit of the CMU samples
+SECTION_HEADER = 16  # RMAL: clip count, three reserved words
+PAYLOAD_HEADER = 32
+DESC_SIZE = {1: 28, 2: 40, 3: 20, 4: 20}  # track descriptor bytes per kind
+SECTION_PREFIX = section_prefix(1)  # the section header of a one-clip asset
 
 
 def _encode(motions, tol, **options):
@@ -26,7 +34,7 @@ def _encode(motions, tol, **options):
 def _error_cm(asset: Asset, motion) -> np.ndarray:
     _, pos_o = forward_kinematics(motion.skeleton, motion.rotations, motion.translations)
     _, pos_d = asset.sample_frames(motion.name, world=True)
-    return np.linalg.norm(pos_o - pos_d, axis=-1) * 5.6444
+    return np.linalg.norm(pos_o - pos_d, axis=-1) * CM
 
 
 def _sections(asset_bytes: bytes) -> list[tuple[bytes, int, int, int]]:
@@ -83,42 +91,54 @@ def test_smaller_than_spline_at_the_same_tolerance(library, sample_paths):
     assert len(result.asset) < len(spline.asset)
 
 
-def test_resident_memory_is_what_the_format_says(library):
-    _, result = library
+def test_section_and_clip_data_ranges(library):
+    """The section: a 16-byte header (clip count, zeros), then the payloads back to back, each
+    starting with its size; each clip's data range (mcd_clip_info) is its payload, which is
+    all that sampling the clip reads besides the container."""
+    motions, result = library
     asset = Asset(result.asset)
-    payloads = [p for _, p in _payloads(result.asset)]
-    assert asset.resident_size == 16 + sum(resident_bytes(p) for p in payloads)
-    # Each payload's resident offset is the running sum of the blocks before it.
-    offsets = [struct.unpack_from("<I", p, 24)[0] for p in payloads]
-    assert offsets == list(np.cumsum([0] + [resident_bytes(p) for p in payloads[:-1]]))
+    rmal = next(s for s in _sections(result.asset) if s[0] == b"RMAL")
+    assert struct.unpack_from("<4I", result.asset, rmal[2]) == (len(motions), 0, 0, 0)
+    at = rmal[2] + SECTION_HEADER
+    for (start, payload), info in zip(_payloads(result.asset), asset.clips):
+        assert start == at and struct.unpack_from("<I", payload)[0] == len(payload)
+        assert (info.data_offset, info.data_size) == (start, len(payload))
+        at += len(payload)
+    assert at == rmal[2] + rmal[3]
 
 
 def _assert_c_matches_reference(result, motions) -> None:
     asset = Asset(result.asset)
     for (_, payload), m, info in zip(_payloads(result.asset), motions, asset.clips):
         x = np.concatenate((np.arange(m.frame_count), np.linspace(0, m.frame_count - 1, 613)))
-        rot_py, trans_py = decode_payload(payload, m.skeleton, x)
-        poses = asset.sample_times(info.index, (x / info.frame_rate).astype(np.float32))
-        rot_c, trans_c = poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)
+        rot_py, trans_py, scale_py = decode_payload(payload, m.skeleton, x)
+        poses = asset.sample_times(info.index, (x / info.frame_rate).astype(np.float32)).astype(np.float64)
+        rot_c, trans_c, scale_c = poses[..., :4], poses[..., 4:7], poses[..., 7:]
         sign = np.sign(np.sum(rot_c * rot_py, axis=-1, keepdims=True))
         assert np.abs(rot_c - sign * rot_py).max() <= 1e-5
         assert np.abs(trans_c - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
+        assert np.abs(scale_c - scale_py).max() <= 1e-5
 
 
 def _first_descriptor(payload: bytes) -> int:
     nodes, consts = struct.unpack_from("<I", payload, 8)[0], struct.unpack_from("<I", payload, 16)[0]
-    return 32 + (nodes + 3) // 4 * 4 + 4 * consts
+    return PAYLOAD_HEADER + (nodes + 3) // 4 * 4 + 4 * consts
 
 
-def _descriptor_byte1(payload: bytes) -> list[int]:
-    """Byte 1 of every track descriptor: key grid | predictor << 4."""
+def _descriptors(payload: bytes) -> list[int]:
+    """Offset (in the payload) of every track descriptor."""
     tracks = struct.unpack_from("<I", payload, 12)[0]
     pos = _first_descriptor(payload)
     out = []
     for _ in range(tracks):
-        out.append(payload[pos + 1])
-        pos += {1: 20, 2: 32, 3: 16}[payload[pos]]
+        out.append(pos)
+        pos += DESC_SIZE[payload[pos]]
     return out
+
+
+def _cell_shifts(payload: bytes) -> list[int]:
+    """Byte 1 of each descriptor: the first segment detached (bit 0), the cell shift (bits 1-2)."""
+    return [payload[d + 1] >> 1 & 3 for d in _descriptors(payload)]
 
 
 def test_c_runtime_and_python_reference_agree(library):
@@ -126,30 +146,37 @@ def test_c_runtime_and_python_reference_agree(library):
     _assert_c_matches_reference(result, motions)
 
 
-def test_slope_predictors_are_chosen_and_decode_alike_in_c_and_python(sample_paths):
-    # Tight tolerances give dense keys, where carrying the slope over predicts best.
+def test_dense_keys_decode_alike_in_c_and_python(sample_paths):
+    # Tight tolerances give dense keys (cells of one frame), outliers and short last groups.
     motions = [read_bvh(p) for p in sample_paths[:1]]
     result = _encode(motions, 0.05)
     (_, payload), = _payloads(result.asset)
-    predictors = {b >> 4 for b in _descriptor_byte1(payload)}
-    assert predictors <= {0, 1, 2} and predictors & {1, 2}
+    assert 0 in _cell_shifts(payload)
     _assert_c_matches_reference(result, motions)
     assert _error_cm(Asset(result.asset), motions[0]).max() <= 0.05
 
 
-def test_sequential_and_random_access_give_identical_poses(library):
+def test_sequential_random_and_backward_access_give_identical_poses(library):
+    """Every clip: forward, shuffled and backward through its frames and quarter frames, and
+    all clips interleaved in one shuffled run, local and world: the same bytes."""
     _, result = library
     asset = Asset(result.asset)
-    info = asset.clips[1]
-    x = np.linspace(0, info.frame_count - 1, 4 * info.frame_count)
-    times = (x / info.frame_rate).astype(np.float32)
-    forward = asset.sample_times(info.index, times)
-    order = np.random.default_rng(7).permutation(len(times))
-    shuffled = np.empty_like(forward)
-    shuffled[order] = asset.sample_times(info.index, times[order])
-    backward = asset.sample_times(info.index, times[::-1])[::-1]
-    assert np.array_equal(forward, shuffled)
-    assert np.array_equal(forward, backward)
+    jobs = []
+    for flags in (0, 1):
+        for info in asset.clips:
+            x = np.linspace(0, info.frame_count - 1, 4 * info.frame_count - 3)
+            times = (x / info.frame_rate).astype(np.float32)
+            forward = asset.sample_times(info.index, times, flags)
+            order = np.random.default_rng(7 + info.index).permutation(len(times))
+            shuffled = np.empty_like(forward)
+            shuffled[order] = asset.sample_times(info.index, times[order], flags)
+            backward = asset.sample_times(info.index, times[::-1], flags)[::-1]
+            assert np.array_equal(forward, shuffled)
+            assert np.array_equal(forward, backward)
+            jobs += [(info.index, t, flags, forward[k]) for k, t in enumerate(times) if k % 5 == 0]
+    for j in np.random.default_rng(8).permutation(len(jobs)):
+        clip, t, flags, want = jobs[j]
+        assert np.array_equal(asset.sample(clip, t, flags), want)
 
 
 def test_two_encodes_are_byte_identical(sample_paths):
@@ -178,36 +205,119 @@ def _rewrite(asset_bytes: bytes, at: int, new: bytes) -> bytes:
 
 
 def test_inconsistent_payloads_are_rejected_at_open(library):
+    """One rule of the RMAL v2 payload broken at a time, the checksum rewritten."""
     _, result = library
     start, payload = _payloads(result.asset)[1]
-    resident_offset = struct.unpack_from("<I", payload, 24)[0]
-    gap_bytes = struct.unpack_from("<I", payload, 28)[0]
-    key_total = struct.unpack_from("<I", payload, 20)[0]
+    size, frames, nodes, tracks, consts = struct.unpack_from("<5I", payload)
+    modes = PAYLOAD_HEADER
+    descs = _descriptors(payload)
+    rot = next(d for d in descs if payload[d] in (1, 2))  # a rotation track's descriptor
+    trans = next(d for d in descs if payload[d] == 3)
+    u32 = lambda v: struct.pack("<I", v)  # noqa: E731
     cases = {
-        "resident offset off the running sum": (start + 24, struct.pack("<I", resident_offset + 16)),
-        "resident offset not a multiple of 16": (start + 24, struct.pack("<I", resident_offset + 4)),
-        "key total that the tracks do not add up to": (start + 20, struct.pack("<I", key_total + 1)),
-        "gap stream size moved into the value streams": (start + 28, struct.pack("<I", gap_bytes + 1)),
-        "value predictor 3 (undefined)": (start + _first_descriptor(payload) + 1,
-                                          bytes([_descriptor_byte1(payload)[0] & 15 | 3 << 4])),
+        "size not the clip record's": (0, u32(size + 4)),
+        "frame count not the clip's": (4, u32(frames + 1)),
+        "node count not the skeleton's": (8, u32(nodes - 1)),
+        "one track more than the modes use": (12, u32(tracks + 1)),
+        "one constant more than the modes use": (16, u32(consts + 1)),
+        "first reserved word": (20, u32(1)),
+        "reserved word": (24, u32(1)),
+        "last reserved word": (28, u32(1)),
+        "node mode 3 (undefined)": (modes, bytes([payload[modes] | 3])),
+        "node mode bits 6-7": (modes, bytes([payload[modes] | 0x40])),
+        "a rotation track of translation kind": (rot, bytes([3])),
+        "track kind 5": (rot, bytes([5])),
+        "group shift 0 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7])),
+        "group shift 7 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7 | 7 << 3])),
+        "descriptor flag bit 6": (rot + 1, bytes([payload[rot + 1] | 0x40])),
+        "offset bits 0": (rot + 2, bytes([0])),
+        "offset bits 33": (rot + 2, bytes([33])),
+        "reserved descriptor byte": (rot + 3, bytes([1])),
+        "no keys": (rot + 4, u32(0)),
+        "more keys than frames": (rot + 4, u32(frames + 1)),
+        "one key in a clip of many frames": (rot + 4, u32(1)),
+        "data bytes not a multiple of 4": (rot + 8, u32(struct.unpack_from("<I", payload, rot + 8)[0] + 2)),
+        "step NaN": (trans + 12, struct.pack("<f", float("nan"))),
+        "step negative": (trans + 12, struct.pack("<f", -0.01)),
+        "component bits 0": (trans + 16, bytes([0])),
+        "component bits 32": (trans + 16, bytes([32])),
+        "bits of a fourth component a translation lacks": (trans + 19, bytes([1])),
+        "reference padding": (rot + 26, struct.pack("<H", 1)),
+        "trailing zero bytes not zero": (size - 1, bytes([1])),
     }
+    # The track parts: bitmap, rank table, group table, records.
+    _, decoded = decode_keys(payload)
+    t = max(decoded, key=lambda t: t["K"])
+    parts = t["parts"]
+    word = int.from_bytes(payload[parts["bitmap"]:parts["bitmap"] + 8], "little")
+    spare = next(c for c in range(1, 64) if not word >> c & 1)  # a cell without a key
+    last_widths = (t["parts"]["rows"] - 1) * t["parts"]["row_bits"] + t["offset_bits"]
+    at = parts["table"] + last_widths // 8
+    cases.update({
+        "frame 0 not a key cell": (parts["bitmap"], bytes([payload[parts["bitmap"]] & 0xFE])),
+        "one key cell more than keys": (parts["bitmap"], (word | 1 << spare).to_bytes(8, "little")),
+        "the group table's first offset not 0": (parts["table"], bytes([payload[parts["table"]] | 1])),
+        "the last row's widths not 0": (at, bytes([payload[at] | 1 << last_widths % 8])),
+        "data bytes one word more": (next(d for d in descs if payload[d + 4:d + 8] == struct.pack("<I", t["K"])) + 8,
+                                     u32(t["data_bytes"] + 4)),
+    })
+    if t["K"] > 128:
+        cases["a rank entry off by one"] = (parts["rank"] + 1, bytes([payload[parts["rank"] + 1] ^ 0x01]))
     for why, (at, new) in cases.items():
+        assert payload[at:at + len(new)] != new, why
         with pytest.raises(RuntimeResultError):
-            Asset(_rewrite(result.asset, at, new))
+            Asset(_rewrite(result.asset, start + at, new))
             pytest.fail(why)
 
 
+@pytest.fixture(scope="module")
+def small_clip(sample_paths):
+    """A short rma clip (09_11, 30 frames, 1 cm) and its payload, for the byte sweeps."""
+    m = read_bvh(sample_paths[2]).slice(0, 30)
+    result = _encode([m], 1.0)
+    (_, payload), = _payloads(result.asset)
+    return m, result.asset, payload
+
+
+def test_every_truncation_of_a_payload_is_rejected(small_clip):
+    m, _, payload = small_clip
+    assert runtime_accepts(m, CM, "rma", payload, prefix=SECTION_PREFIX)
+    for cut in range(len(payload)):
+        assert not runtime_accepts(m, CM, "rma", payload[:cut], prefix=SECTION_PREFIX), cut
+
+
+def test_byte_flips_are_rejected_or_decode_finite(small_clip):
+    """Every byte of a small payload, each of four flips (checksum rewritten): the asset is
+    refused, or every frame and midpoint samples (it cannot fail once validated) to finite
+    transforms and unit quaternions."""
+    m, data, payload = small_clip
+    (start, _), = _payloads(data)
+    times = (np.arange(2 * m.frame_count - 1) * 0.5 / m.frame_rate).astype(np.float32)
+    rejected = accepted = 0
+    for at in range(len(payload)):
+        for mask in (0x01, 0x10, 0x80, 0xFF):
+            flipped = _rewrite(data, start + at, bytes([payload[at] ^ mask]))
+            try:
+                asset = Asset(flipped)
+            except RuntimeResultError:
+                rejected += 1
+                continue
+            accepted += 1
+            for flags in (0, 1):
+                poses = asset.sample_times(0, times, flags)
+                assert np.isfinite(poses).all(), (at, mask)
+                assert np.abs(np.linalg.norm(poses[..., :4], axis=-1) - 1.0).max() <= 1e-3, (at, mask)
+    assert rejected > 0 and accepted > 0, (rejected, accepted)
+
+
 def test_corrupt_streams_are_rejected_or_decode_to_finite_poses(library):
-    """Every byte of a clip's entropy streams flipped in turn: open fails cleanly, or the
-    asset decodes to finite transforms (a range coder cannot tell every change)."""
+    """Bytes of a clip's track data flipped in turn (every 7th): open fails cleanly, or the
+    asset decodes to finite transforms (not every change breaks a rule)."""
     _, result = library
     start, payload = _payloads(result.asset)[2]
-    nodes, tracks, consts = struct.unpack_from("<III", payload, 8)[0], *struct.unpack_from("<II", payload, 12)
-    descs = 0
-    pos = 32 + (nodes + 3) // 4 * 4 + 4 * consts
-    for _ in range(tracks):
-        descs += {1: 20, 2: 32, 3: 16}[payload[pos + descs]]
-    first = start + pos + descs
+    descs = _descriptors(payload)
+    last = descs[-1] + DESC_SIZE[payload[descs[-1]]]
+    first = start + (last + 3) // 4 * 4
     rejected = opened = 0
     for at in range(first, start + len(payload), 7):
         data = _rewrite(result.asset, at, bytes([result.asset[at] ^ 0x5A]))
@@ -235,13 +345,21 @@ def test_dev_set_meets_one_cm_on_every_frame_as_one_library(shared_cmu_dir):
         assert _error_cm(asset, m).max() <= 1.0, m.name
 
 
-@pytest.mark.parametrize("grid", [1, 4, 7])
-def test_key_grid_is_stored_and_the_tolerance_holds(sample_paths, grid):
+@pytest.mark.parametrize("grid", [1, 2, 4, 8])
+def test_key_grid_puts_keys_on_cell_starts_and_the_tolerance_holds(sample_paths, grid):
+    """Keys sit on the first frames of cells of ``grid`` frames (a track that needs a key
+    elsewhere falls back to smaller cells, which its descriptor says)."""
     m = read_bvh(sample_paths[0])
     result = _encode([m], 1.0, key_grid=grid)
     (_, payload), = _payloads(result.asset)
-    grids = [b & 15 for b in _descriptor_byte1(payload)]
-    assert set(grids) == {grid}
+    _, tracks = decode_keys(payload)
+    kept = 0
+    for t in tracks:
+        C = 1 << t["cell_shift"]  # the writer's: the largest the keys allow
+        inner = t["frames"][(t["frames"] > 0) & (t["frames"] < m.frame_count - 1)]
+        assert np.all((inner - 1) % C == 0)
+        kept += bool(np.all((inner - 1) % grid == 0))
+    assert kept >= 0.75 * len(tracks), (kept, len(tracks))
     assert _error_cm(Asset(result.asset), m).max() <= 1.0
 
 
@@ -251,5 +369,6 @@ def test_key_grid_default_follows_the_tolerance():
     assert RMASettings(Tolerance(1.0)).key_grid == 4
     assert RMASettings(Tolerance(1.0, 0.1)).key_grid == 1
     assert RMASettings(Tolerance(0.02)).key_grid == 1
-    with pytest.raises(ValueError, match="key_grid"):
-        RMASettings(Tolerance(1.0), key_grid=9)
+    for bad in (3, 9):
+        with pytest.raises(ValueError, match="key_grid"):
+            RMASettings(Tolerance(1.0), key_grid=bad)

@@ -77,10 +77,11 @@ def test_c_runtime_and_python_reference_agree(sample_paths):
     x = np.concatenate((np.arange(m.frame_count), np.linspace(0, m.frame_count - 1, 997)))
     rot_py, trans_py = decode_payload(payload, m.skeleton, x)
     poses = asset.sample_times(0, (x / info.frame_rate).astype(np.float32))
-    rot_c, trans_c = poses[..., :4].astype(np.float64), poses[..., 4:].astype(np.float64)
+    rot_c, trans_c = poses[..., :4].astype(np.float64), poses[..., 4:7].astype(np.float64)
     sign = np.sign(np.sum(rot_c * rot_py, axis=-1, keepdims=True))
     assert np.abs(rot_c - sign * rot_py).max() <= 1e-5
     assert np.abs(trans_c - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
+    assert np.all(poses[..., 7:] == 1.0)  # the rest scale: a BVH skeleton has none
 
 
 def _payload_of(asset_bytes: bytes) -> bytes:

@@ -1,4 +1,4 @@
-"""The ``mocodec`` command line: encode, decode, info, eval, demo.
+"""The ``mocodec`` command line: encode, decode, info, eval, view, demo.
 
 Every error a user can cause (a bad BVH, a tolerance that cannot be met, a corrupted asset)
 is printed as one line starting with ``mocodec: error:`` and exits with status 1; usage
@@ -17,19 +17,26 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import __version__, codecs
+from .codecs import DEFAULT_CODEC
+from .tolerance import DEFAULT_TOLERANCE_CM
 
 EPILOG = """\
 examples:
   mocodec encode walk.bvh run.bvh -o moves.mcd --tolerance 0.5
   mocodec encode ../mocap/ -o library.mcd --tolerance 1 --units cmu
+  mocodec encode hero.glb -o hero.mcd --rate 30
   mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
+  mocodec decode hero.mcd -o hero_decoded.glb
   mocodec info moves.mcd
   mocodec eval walk.bvh --tolerance 0.1 --json
+  mocodec eval walk.bvh --sweep 0.1 0.5 1 2 --codecs rma spline --plot curve.html
+  mocodec view moves.mcd --original walk.bvh run.bvh -o moves.html
 
 The tolerance is a promise: the largest world-space position error of any joint or end site
-on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
-no units: give --units or --cm-per-unit, or mocodec guesses from the skeleton's height and
-says what it assumed.
+(and of a point beyond every glTF leaf joint) on any frame, in centimetres, measured through
+the C runtime an engine uses. glTF is in metres. BVH files have no units: give --units or
+--cm-per-unit, or mocodec guesses from the figure's animated poses (one unit for clips that
+share a skeleton), says what it assumed, and warns about a figure under 50 or over 300 cm.
 """
 
 
@@ -70,38 +77,25 @@ def _progress(total: int, enabled: bool):
 
 
 def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
-    paths: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh")
-            if not found:
-                raise CliError(f"{p}: folder holds no .bvh files")
-            paths.extend(found)
-        elif p.exists():
-            paths.append(p)
-        else:
-            raise CliError(f"{p}: no such file or folder")
-    if not paths:
-        raise CliError("no input files")
-    return paths
+    from .load import InputError, expand
+
+    try:
+        return expand(inputs)
+    except InputError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _warn(message: str) -> None:
+    print(f"mocodec: warning: {message}", file=sys.stderr)
 
 
 def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
-    from .io import read_bvh
-    from .units import resolve_units
+    from .load import load_all
+    from .units import resolve_library_units
 
-    motions, units = [], []
-    names: set[str] = set()
-    for p in paths:
-        m = read_bvh(p)
-        base, k = m.name, 2
-        while m.name in names:  # two files with one stem: keep both, distinctly named
-            m.name = f"{base}_{k}"
-            k += 1
-        names.add(m.name)
-        motions.append(m)
-        units.append(resolve_units(m.skeleton, args.units, args.cm_per_unit))
+    motions = load_all(paths, getattr(args, "rate", None))
+    units = resolve_library_units(motions, args.units, args.cm_per_unit,
+                                  strict=bool(getattr(args, "strict", False)), warn=_warn)
     if not quiet:
         described = {}
         for m, u in zip(motions, units):
@@ -182,11 +176,12 @@ def _summary_lines(result) -> list[str]:
         f"codec: {result.codec}   " + (f"tolerance: {result.tolerance.tolerance_cm} cm" if result.promise else
                                        f"PCA variance {result.settings.get('pca_variance')} (no tolerance)"),
         f"size: {_fmt_int(size.asset_bytes)} bytes ({_fmt_int(size.bytes_per_second)} B/s of animation)",
-        f"ratio: {size.ratio_bvh:.1f}:1 vs BVH float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
+        f"ratio: {size.ratio_bvh:.1f}:1 vs the source's float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
         f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
         f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
         f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
         f"encode time: {result.encode_seconds:.1f} s",
+        *result.notes,
     ]
 
 
@@ -223,6 +218,7 @@ def _result_json(result) -> dict[str, Any]:
         "size": result.size.as_dict(),
         "error": combine([c.error for c in result.clips]),
         "encode_seconds": result.encode_seconds,
+        "notes": result.notes,
         "clips": [
             {"name": c.name, "frames": c.frames, "units": c.units.label,
              "cm_per_unit": c.units.cm_per_unit, **c.error.as_dict(), **c.stats}
@@ -244,7 +240,52 @@ def cmd_encode(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Size against error of one or more codecs over the tolerances of --sweep."""
+    from .sweep import points_json, run_sweep, sweep_html, sweep_png
+
+    if args.output:
+        raise CliError("--sweep writes many assets' figures, not one asset: drop -o (use --plot FILE)")
+    names = args.codecs or [args.codec]
+    unknown = [n for n in names if n not in codecs.available()]
+    if unknown:
+        raise CliError(f"unknown codec {unknown[0]!r} (codecs: {', '.join(codecs.available())})")
+    if any(not t > 0 for t in args.sweep):
+        raise CliError("--sweep tolerances must be positive centimetres")
+    plot = Path(args.plot or "sweep.html")
+    if plot.suffix.lower() not in (".html", ".png"):
+        raise CliError(f"{plot}: --plot writes .html or .png")
+    paths = _expand_inputs(args.inputs)
+    motions, units = _load(paths, args, args.quiet or args.json)
+    progress = _progress(len(names) * len(args.sweep), not args.quiet and not args.json)
+    points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress)
+    frames = sum(m.frame_count for m in motions)
+    description = (f"{len(motions)} clip(s), {frames:,} frames ({', '.join(m.name for m in motions[:6])}"
+                   f"{', ...' if len(motions) > 6 else ''}); codecs {', '.join(names)}; tolerances "
+                   f"{', '.join(f'{t:g}' for t in sorted(args.sweep))} cm; measured through the C runtime.")
+    if plot.suffix.lower() == ".png":
+        sweep_png(points, description, plot)
+    else:
+        plot.write_text(sweep_html(points, description), encoding="utf-8")
+    if args.json:
+        print(json.dumps({"plot": str(plot), "points": points_json(points)}, indent=2))
+        return 0
+    print(f"  {'codec':<12} {'tol cm':>7} {'bytes':>10} {'ratio':>7} {'max cm':>8} {'p99 cm':>8} {'mean cm':>8}")
+    for p in points:
+        if p.failed:
+            print(f"  {p.codec:<12} {p.tolerance_cm:>7g}  not met: {p.failed}")
+        else:
+            print(f"  {p.codec:<12} {p.tolerance_cm:>7g} {p.asset_bytes:>10,} {p.ratio_bvh:>7.1f} "
+                  f"{p.max_cm:>8.4f} {p.p99_cm:>8.4f} {p.mean_cm:>8.4f}")
+    print(f"wrote {plot}")
+    return 0
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
+    if args.sweep:
+        return cmd_sweep(args)
+    if args.codecs or args.plot:
+        raise CliError("--codecs and --plot go with --sweep")
     motions, result = _encode(args)
     if args.output:
         Path(args.output).write_bytes(result.asset)
@@ -267,13 +308,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    from .decode import decode_clip
+    from .decode import decode_clip, write_asset_gltf
     from .io import write_bvh
     from .runtime import Asset
 
-    asset = Asset(_read_asset(args.asset))
+    data = _read_asset(args.asset)
+    asset = Asset(data)
     clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
     out = Path(args.output)
+    if out.suffix.lower() in (".glb", ".gltf"):
+        write_asset_gltf(data, out, [c.index for c in clips])
+        if not args.quiet:
+            print(f"wrote {out} ({len(clips)} clip(s) as glTF animations, decoded by the C runtime)")
+        return 0
     if len(clips) > 1:
         if out.suffix.lower() == ".bvh":
             raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
@@ -285,7 +332,12 @@ def cmd_decode(args: argparse.Namespace) -> int:
         targets = [out]
     progress = _progress(len(clips), not args.quiet)
     for c, target in zip(clips, targets):
-        write_bvh(decode_clip(asset, c.index), target, precision=args.precision)
+        motion = decode_clip(asset, c.index)
+        sk = motion.skeleton
+        if sk.is_virtual.any() or np.any(sk.rest_rotations != [0.0, 0.0, 0.0, 1.0]) or np.any(sk.rest_scales != 1):
+            raise CliError(f"clip {c.name!r} comes from glTF (rest rotations and scales, no BVH "
+                           "channels): decode it to a .glb or .gltf file")
+        write_bvh(motion, target, precision=args.precision)
         progress(c.name)
         if not args.quiet:
             print(f"wrote {target} ({c.frame_count} frames, decoded by the C runtime)")
@@ -338,7 +390,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"  memory to sample: the asset itself ({len(data):,} B, sampled in place) + "
           f"{info['scratch_bytes']:,} B scratch per playing instance")
     if info["ratio_bvh"]:
-        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs BVH float32 channels")
+        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs the source's float32 channels")
     print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))
     for i, s in enumerate(info["skeletons"]):
         print(f"  skeleton {i}: {s['nodes']} nodes, {s['cm_per_unit']:g} cm per unit")
@@ -353,6 +405,34 @@ def cmd_info(args: argparse.Namespace) -> int:
 def _codec_name(codec_id: int) -> str:
     codec = codecs.by_id(codec_id)
     return codec.name if codec else str(codec_id)
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """One self-contained page: the asset decoded in the page by the wasm runtime, the originals."""
+    from .runtime import Asset, Result, RuntimeResultError, validate
+    from .view import build_page, match_originals, read_motions, serve_page
+
+    data = _read_asset(args.asset)
+    originals = []
+    status = validate(data)
+    if status != Result.OK:
+        print(f"mocodec: warning: {args.asset}: {RuntimeResultError(int(status))}; the page shows this error"
+              + (" and compares no original" if args.original else ""), file=sys.stderr)
+    else:
+        asset = Asset(data)
+        clips = [(c.name, c.frame_count, [n.name for n in asset.nodes(c.skeleton)]) for c in asset.clips]
+        motions = [(str(p), m) for p in args.original or [] for m in read_motions(p)]
+        originals = match_originals(motions, clips)
+    html = build_page(data, Path(args.asset).name, originals)
+    if args.serve:
+        serve_page(html, args.port)
+        return 0
+    out = Path(args.output) if args.output else Path(args.asset).with_suffix(".html")
+    out.write_text(html, encoding="utf-8")
+    if not args.quiet:
+        compared = f"{len(originals)} of {len(clips)} clips compared with an original" if status == Result.OK else "no clip shown"
+        print(f"wrote {out} ({len(html.encode()):,} bytes, opens with no network; {compared})")
+    return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -382,12 +462,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- parser
 def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="BVH files or folders of BVH files (one clip each)")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+                   help="BVH files (one clip each), glTF 2.0 files (.gltf, .glb: every animation "
+                        "a clip) or folders of them")
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s, the smallest that "
                         "meets the tolerance: a whole library in one section; spline samples in "
                         "place without resident memory; `mocodec --help` describes each)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM",
                    help="max world-space position error of any joint or end site on any frame, "
                         "in cm (default: %(default)s)")
     p.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
@@ -400,8 +481,14 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     units = p.add_mutually_exclusive_group()
     units.add_argument("--units", choices=["cm", "m", "mm", "in", "cmu"],
                        help="the BVH files' length unit (cmu: CMU mocap, 5.6444 cm); "
-                            "default: guessed from the skeleton's height")
-    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per file unit")
+                            "default: guessed from the figure's animated poses (glTF is metres)")
+    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per BVH file unit")
+    p.add_argument("--strict", action="store_true",
+                   help="a BVH figure under 50 or over 300 cm tall in its unit is an error, not a warning")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="frames per second glTF clips are resampled at (default: the clip's key "
+                        "spacing when regular, subdivided up to 24 Hz, else 60); errors are measured "
+                        "against the source's own interpolation at those times")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
                    help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
     p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
@@ -429,12 +516,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcd", help="asset to write")
     p.set_defaults(func=cmd_encode)
 
-    p = sub.add_parser("decode", help="decode an asset back to BVH through the C runtime",
+    p = sub.add_parser("decode", help="decode an asset back to BVH or glTF through the C runtime",
                        description="Decode clips through the C runtime and write BVH with the "
-                                   "original hierarchy and channel layout.")
+                                   "original hierarchy and channel layout, or glTF 2.0 (-o x.glb / "
+                                   "x.gltf: every clip an animation on the original node hierarchy, "
+                                   "a key per frame).")
     p.add_argument("asset", metavar="ASSET.mcd")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="a .bvh file (one clip) or a folder (one file per clip)")
+                   help="a .bvh file (one clip), a folder (one BVH per clip), or a .glb / .gltf "
+                        "file (every clip)")
     p.add_argument("--clip", metavar="NAME", help="decode only this clip")
     p.add_argument("--precision", type=int, default=6, help="decimals written (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -451,14 +541,36 @@ def build_parser() -> argparse.ArgumentParser:
                                    "ratios in both conventions and max/p99/mean error per clip and joint.")
     _add_encode_arguments(p)
     p.add_argument("-o", "--output", metavar="OUT.mcd", help="also write the asset")
+    p.add_argument("--sweep", nargs="+", type=float, metavar="CM",
+                   help="encode at each of these tolerances and write the size-against-error curve "
+                        "(--plot) instead of one report")
+    p.add_argument("--codecs", nargs="+", metavar="CODEC",
+                   help="with --sweep: the codecs to compare (default: --codec)")
+    p.add_argument("--plot", metavar="FILE", help="with --sweep: the curve as a page (.html, default "
+                                                  "sweep.html) or a PNG (.png, needs matplotlib)")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("view", help="a page that plays an asset beside the original, with its errors",
+                       description="Write one self-contained HTML page (no network needed to open it) "
+                                   "that decodes the asset in the browser with the runtime compiled to "
+                                   "WebAssembly, shows the original and the decoded skeleton with each "
+                                   "joint coloured by its error, a timeline, the clip list, the figures "
+                                   "and the error per frame; or serve it on localhost.")
+    p.add_argument("asset", metavar="ASSET.mcd")
+    p.add_argument("--original", nargs="+", metavar="FILE",
+                   help="the motions the asset was encoded from (BVH; each matched to the clip of its name)")
+    p.add_argument("-o", "--output", metavar="VIEW.html", help="page to write (default: ASSET.html)")
+    p.add_argument("--serve", action="store_true", help="serve the page on localhost instead of writing it")
+    p.add_argument("--port", type=int, default=0, help="port for --serve (default: any free one)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "
                                    "runtime, print ratio and error.")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM")
     p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
                    help="where to write the asset and decoded BVH (default: %(default)s)")
     p.set_defaults(func=cmd_demo)

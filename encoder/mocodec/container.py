@@ -24,7 +24,8 @@ FORMAT_MINOR = 0
 HEADER_SIZE = 32
 SKEL_VERSION = 2
 CLIP_VERSION = 2
-SKEL_NODE_SIZE = 56
+SKEL_NODE_SIZE = 32
+SKEL_REST_SIZE = 28
 NODE_JOINT, NODE_END_SITE, NODE_VIRTUAL = 0, 1, 2
 
 
@@ -56,28 +57,27 @@ class ClipEntry:
 
 
 def skeleton_section(skeleton: Skeleton, cm_per_unit: float) -> bytes:
-    """``SKEL`` section bytes for a skeleton (version 2: rest translation, rotation, scale)."""
+    """``SKEL`` section bytes for a skeleton (version 2: node records, then the rest rotations
+    and scales when any is not the identity)."""
     n = skeleton.node_count
     strings = bytearray()
     name_offsets = []
     for name in skeleton.names:
         name_offsets.append(len(strings))
         strings += name.encode("utf-8") + b"\0"
-    out = bytearray(struct.pack("<IIfI", n, 0, cm_per_unit, 16 + SKEL_NODE_SIZE * n))
+    rot = np.asarray(skeleton.rest_rotations, dtype=np.float32)
+    scale = np.asarray(skeleton.rest_scales, dtype=np.float32)
+    has_rest = not (np.all(rot == np.float32([0, 0, 0, 1])) and np.all(scale == 1))
+    out = bytearray(struct.pack("<IIfI", n, 1 if has_rest else 0, cm_per_unit,
+                                16 + (SKEL_NODE_SIZE + (SKEL_REST_SIZE if has_rest else 0)) * n))
     for i in range(n):
         ch = list(skeleton.channels[i]) + [0xFF] * (6 - len(skeleton.channels[i]))
         kind = NODE_VIRTUAL if skeleton.is_virtual[i] else NODE_END_SITE if skeleton.is_end_site[i] else NODE_JOINT
-        out += struct.pack(
-            "<iI3f4f3fBB6B",
-            int(skeleton.parents[i]),
-            name_offsets[i],
-            *np.asarray(skeleton.offsets[i], dtype=np.float32).tolist(),
-            *np.asarray(skeleton.rest_rotations[i], dtype=np.float32).tolist(),
-            *np.asarray(skeleton.rest_scales[i], dtype=np.float32).tolist(),
-            kind,
-            len(skeleton.channels[i]),
-            *ch,
-        )
+        out += struct.pack("<iI3fBB6BI", int(skeleton.parents[i]), name_offsets[i],
+                           *np.asarray(skeleton.offsets[i], dtype=np.float32).tolist(), kind,
+                           len(skeleton.channels[i]), *ch, 0)
+    if has_rest:
+        out += np.concatenate((rot, scale), axis=1).astype("<f4").tobytes()
     return bytes(out + strings)
 
 

@@ -62,8 +62,10 @@ static double rest_offset(const layout* L, uint32_t i, uint32_t k) {
 
 /* A node's rest rotation (identity for BVH skeletons), binary64 x y z w. */
 static void rest_rotation(const layout* L, uint32_t i, double q[4]) {
+    mcd_transform rest;
     uint32_t k;
-    for (k = 0; k < 4u; ++k) q[k] = (double)mcd_rd_f32(mcd_skel_record(L->skel, i) + 20u + 4u * k);
+    mcd_skel_rest(L->skel, i, &rest);
+    for (k = 0; k < 4u; ++k) q[k] = (double)rest.rotation[k];
 }
 
 static uint32_t chain_length(const layout* L, uint32_t c) {
@@ -446,6 +448,7 @@ static void frame_local(const ctx* c, const double* v, mcd_transform* out) {
     for (i = 0; i < c->L.nodes; ++i) {
         const uint8_t* rec = node_rec(&c->L, i);
         double t[3];
+        mcd_skel_rest(c->L.skel, i, &out[i]); /* rotation mode 0, and the scale */
         if (rec[0] == ROT_CODED) {
             int32_t p = parent_of(&c->L, i);
             double q[4], n;
@@ -464,12 +467,9 @@ static void frame_local(const ctx* c, const double* v, mcd_transform* out) {
             for (k = 0; k < 4u; ++k) out[i].rotation[k] = (float)(q[k] / n);
         } else if (rec[0] == ROT_CONSTANT) {
             for (k = 0; k < 4u; ++k) out[i].rotation[k] = mcd_rd_f32(rec + 8 + 4 * k);
-        } else {
-            for (k = 0; k < 4u; ++k) out[i].rotation[k] = mcd_rd_f32(mcd_skel_record(c->L.skel, i) + 20u + 4u * k);
         }
         local_translation(c, v, i, t);
         for (k = 0; k < 3u; ++k) out[i].translation[k] = (float)t[k];
-        for (k = 0; k < 3u; ++k) out[i].scale[k] = mcd_rd_f32(mcd_skel_record(c->L.skel, i) + 36u + 4u * k);
     }
 }
 

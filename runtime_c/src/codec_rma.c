@@ -1,13 +1,14 @@
-/* Codec `rma`: per-track Catmull-Rom keys placed freely in time, sampled in place from the
- * asset's bytes (docs/FORMAT.md, RMAL version 2).
+/* Codec `rma`: per-track Catmull-Rom keys, sampled in place from the asset's bytes
+ * (docs/FORMAT.md, RMAL version 2).
  *
- * A track's key times are a bit mask over the cells of its key grid with a rank directory (a
- * cell holding more than one key is listed, once per extra key, in a short sorted list); its
- * key values come in groups of G keys: a fixed-size group entry
- * (bit offset, residual widths, the first key whole) and fixed-width residuals from a
- * prediction, outliers stored whole. Random access finds the key at or before x by rank and
- * decodes the prefix of one or two groups; sequential playback keeps each track's four keys
- * and a decoding cursor in the scratch and reads one key record per key interval. */
+ * Every part of a track is read directly. Key times: cells of frames in unary (a one per key,
+ * a zero closing each cell) with a rank entry every 64 cells, so the key at or before a frame
+ * is a rank entry and a popcount or two away and its neighbours the next ones. Key values: groups of G keys; a group's row holds its first key whole (the
+ * anchor), its records' bit offset and widths, and each other key is one fixed-width record,
+ * its residual from the chord between the group's anchor and the next, so any key's value is
+ * one read (an escaped residual, rare, a short walk to its outlier). A random access reads the
+ * four keys around x; sequential playback keeps them in the scratch and reads one key per key
+ * interval. */
 #include <string.h>
 
 #include "internal.h"
@@ -15,35 +16,45 @@
 #define SECTION_HEADER 16u
 #define PAYLOAD_HEADER 32u
 #define MAX_GROUP_SHIFT 6u
-#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
-#define DIR_SHIFT 8u        /* a rank directory entry every 256 cells (4 mask words) */
-#define WIDTH_BITS 5u
+#define RANK_SHIFT 6u /* a rank entry every 64 cells */
+#define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
+#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
 
 static uint32_t desc_size(uint32_t kind) {
-    return kind == KIND_MRP ? 32u : kind == KIND_TWIST ? 44u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 24u : 0u;
+    return kind == KIND_MRP ? 28u : kind == KIND_TWIST ? 40u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 20u : 0u;
 }
 
 static uint32_t kind_dims(uint32_t kind) {
     return kind == KIND_TWIST ? 4u : 3u;
 }
 
+/* Bits that hold every value 0 ... n (at least 1). */
+static uint32_t bits_for(uint32_t n) {
+    uint32_t b = 1;
+    while (b < 32u && (n >> b)) ++b;
+    return b;
+}
+
 /* ---------------------------------------------------------------- payload layout */
 typedef struct header {
-    uint32_t size, frames, nodes, tracks, constants, group_shift;
+    uint32_t size, frames, nodes, tracks, constants;
     const uint8_t *modes, *consts, *descs;
 } header;
 
 /* Everything about one track that its descriptor and the clip's frame count give. Offsets
  * are bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, grid_shift, split, predictor, offset_bits, group_shift;
-    uint8_t abits[4];
-    uint32_t keys, cells, words, extras, extra_bits, groups, entry_bits, data_bytes;
+    uint8_t kind, dims, split, cell_shift, group_shift, offset_bits, rank_bits, in_cell_bits;
+    uint8_t abits[4], anchor_bits, reserved[3]; /* anchor_bits: the sum of abits */
+    uint32_t keys, frames;
+    uint32_t cells, words;          /* key cells (the last is the last frame's), unary words */
+    uint32_t rows, row_bits;        /* group table: one row per group, and one for the last anchor */
+    uint32_t data_bytes;
     float step[4];
-    uint32_t mask, dir, extra, table, data, end;
+    uint32_t bitmap, rank, places, table, data, end;
 } track_layout;
 
 static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
@@ -54,11 +65,9 @@ static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
     H->nodes = mcd_rd_u32(p + 8);
     H->tracks = mcd_rd_u32(p + 12);
     H->constants = mcd_rd_u32(p + 16);
-    H->group_shift = p[20];
     if (H->size < PAYLOAD_HEADER || H->size > avail || (H->size & 3u)) return MCD_ERROR_MALFORMED;
-    if (p[21] || p[22] || p[23] || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
+    if (mcd_rd_u32(p + 20) || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
     if (H->frames == 0 || H->nodes == 0 || H->nodes > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (H->group_shift < 1 || H->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
     if (H->tracks > 3u * H->nodes || H->constants > 10u * H->nodes) return MCD_ERROR_MALFORMED;
     if ((uint64_t)PAYLOAD_HEADER + mcd_align4(H->nodes) + 4u * (uint64_t)H->constants > H->size) return MCD_ERROR_MALFORMED;
     H->modes = p + PAYLOAD_HEADER;
@@ -69,54 +78,67 @@ static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
     return MCD_OK;
 }
 
+/* Bytes of n fields of `bits` each, padded to 4 bytes. */
+static uint64_t packed_bytes(uint64_t n, uint64_t bits) {
+    return 4u * ((n * bits + 31u) / 32u);
+}
+
 /* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`;
  * checks what the descriptor alone shows and that the parts fit before `limit`. */
-static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t group_shift, uint32_t at,
-                                 uint32_t limit, track_layout* t) {
+static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit, track_layout* t) {
     uint32_t c;
-    uint64_t end, entry;
+    uint64_t end, row;
     t->kind = d[0];
     if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
     t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the key grid's shift (bits 0-1), the first segment detached (bit 2). */
-    t->grid_shift = d[1] & 3u;
-    t->split = (d[1] >> 2) & 1u;
-    t->predictor = d[2];
-    t->offset_bits = d[3];
-    t->group_shift = (uint8_t)group_shift;
+    /* Byte 1: the first segment detached (bit 0), key cells of 2^(bits 1-2) frames, groups of
+     * 2^(bits 3-5) keys. */
+    t->split = d[1] & 1u;
+    t->cell_shift = (d[1] >> 1) & 3u;
+    t->group_shift = (d[1] >> 3) & 7u;
+    t->offset_bits = d[2];
+    t->in_cell_bits = d[3];
     t->keys = mcd_rd_u32(d + 4);
     t->data_bytes = mcd_rd_u32(d + 8);
-    t->extras = mcd_rd_u32(d + 12);
-    if ((d[1] >> 3) || t->predictor > 2 || t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
+    t->frames = frames;
+    if ((d[1] >> 6) || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    /* Byte 3: bits of each key's place in its cell (0, or the cell shift when some key is
+     * off its cell's first frame). */
+    if (t->in_cell_bits && t->in_cell_bits != t->cell_shift) return MCD_ERROR_MALFORMED;
+    if (t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
     if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
-    if ((t->data_bytes & 3u) || t->extras >= t->keys) return MCD_ERROR_MALFORMED;
-    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 16);
-    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 40);
-    entry = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims + t->grid_shift;
+    if (t->data_bytes & 3u) return MCD_ERROR_MALFORMED;
+    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 12);
+    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 36);
+    /* Cells: frame 0, frames 1 ... F - 2 in cells of 2^s, the last frame. */
+    t->cells = frames > 1u ? ((frames - 2u + (1u << t->cell_shift) - 1u) >> t->cell_shift) + 2u : 1u;
+    t->words = (uint32_t)(((uint64_t)t->keys + t->cells + 63u) / 64u);
+    t->rank_bits = (uint8_t)bits_for(t->keys);
+    t->rows = ((t->keys - 1u + (1u << t->group_shift) - 1u) >> t->group_shift) + 1u;
+    row = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims;
+    t->anchor_bits = 0;
+    t->reserved[0] = t->reserved[1] = t->reserved[2] = 0;
     for (c = 0; c < 4; ++c) {
-        t->abits[c] = d[20 + c];
+        t->abits[c] = d[16 + c];
         if (c < t->dims) {
             if (t->abits[c] < 1 || t->abits[c] > 31) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds(t->step[c]) || t->step[c] < 0.0f) return MCD_ERROR_MALFORMED;
-            entry += t->abits[c];
+            row += t->abits[c];
+            t->anchor_bits = (uint8_t)(t->anchor_bits + t->abits[c]);
         } else if (t->abits[c]) {
             return MCD_ERROR_MALFORMED;
         }
     }
-    t->entry_bits = (uint32_t)entry;
-    t->cells = frames > 1u ? ((frames - 2u) >> t->grid_shift) + 1u : 0u;
-    t->words = (t->cells + 63u) / 64u;
-    t->groups = ((t->keys - 1u) >> group_shift) + 1u;
-    /* Extra keys name their cell: as many bits as the largest cell index needs. */
-    for (t->extra_bits = 1; t->extra_bits < 32u && t->cells > (1u << t->extra_bits); ++t->extra_bits) {}
-    t->mask = at;
-    t->dir = t->mask + 8u * t->words;
-    t->extra = t->dir + 4u * ((t->words + 3u) / 4u);
-    end = t->extra + 4u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u);
-    if (end > limit) return MCD_ERROR_MALFORMED;
-    t->table = (uint32_t)end;
-    end += 4u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u);
-    t->data = (uint32_t)(end < 0xFFFFFFFFu ? end : 0xFFFFFFFFu);
+    t->row_bits = (uint32_t)row;
+    t->bitmap = at;
+    end = at + 8u * (uint64_t)t->words;
+    t->rank = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes((t->cells + 63u) / 64u, t->rank_bits);
+    t->places = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes(t->in_cell_bits ? t->keys : 0u, t->in_cell_bits);
+    t->table = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes(t->rows, t->row_bits);
+    t->data = (uint32_t)(end > limit ? limit : end);
     end += t->data_bytes;
     if (end > limit) return MCD_ERROR_MALFORMED;
     t->end = (uint32_t)end;
@@ -124,165 +146,234 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t gro
 }
 
 /* ---------------------------------------------------------------- key times */
-static uint64_t mask_word(const uint8_t* p, const track_layout* t, uint32_t w) {
-    return mcd_rd_u64(p + t->mask + 8u * (size_t)w);
+static uint64_t bitmap_word(const uint8_t* p, const track_layout* t, uint32_t w) {
+    return mcd_rd_u64(p + t->bitmap + 8u * (size_t)w);
 }
 
-static int cell_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    return (int)((mask_word(p, t, c >> 6) >> (c & 63u)) & 1u);
+/* The cell of frame f (0 ... F - 1), and the frame a key in cell c sits on. */
+static uint32_t cell_of(const track_layout* t, uint32_t f) {
+    if (f == 0) return 0;
+    if (f >= t->frames - 1u) return t->cells - 1u;
+    return ((f - 1u) >> t->cell_shift) + 1u;
 }
 
-/* Extra keys in cells before c: a binary search of the sorted list. */
-static uint32_t extras_before(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t lo = 0, hi = t->extras;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2u;
-        if (mcd_read_bits(p + t->extra, (uint64_t)mid * t->extra_bits, t->extra_bits) < c) lo = mid + 1u; else hi = mid;
+static uint32_t cell_frame(const track_layout* t, uint32_t c) {
+    if (c == 0) return 0;
+    if (c >= t->cells - 1u) return t->frames - 1u;
+    return 1u + ((c - 1u) << t->cell_shift);
+}
+
+/* The frame of key k, whose cell is c. */
+static uint32_t key_frame(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t c) {
+    uint32_t f = cell_frame(t, c);
+    return t->in_cell_bits ? f + mcd_read_bits(p + t->places, (uint64_t)k * t->in_cell_bits, t->in_cell_bits) : f;
+}
+
+/* The r-th set bit (from 0) of x, which has more than r. */
+static uint32_t select_in_word(uint64_t x, uint32_t r) {
+    uint32_t at = 0, n;
+    n = mcd_popcount(x & 0xFFFFFFFFu);
+    if (r >= n) r -= n, x >>= 32, at += 32;
+    n = mcd_popcount(x & 0xFFFFu);
+    if (r >= n) r -= n, x >>= 16, at += 16;
+    n = mcd_popcount(x & 0xFFu);
+    if (r >= n) r -= n, x >>= 8, at += 8;
+    while (r--) x &= x - 1u;
+    return at + mcd_lowest_bit(x);
+}
+
+/* The bit of the zero that closes cell c: from the start of c's 64-cell block (its cells and
+ * keys before it), the (c mod 64)-th zero on. The word bound only matters for bytes never
+ * validated. */
+static uint32_t cell_end(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t r = c & 63u, n, w;
+    uint32_t pos = (c & ~63u) + mcd_read_bits(p + t->rank, (uint64_t)(c >> RANK_SHIFT) * t->rank_bits, t->rank_bits);
+    uint64_t x;
+    w = pos >> 6;
+    if (w >= t->words) return (t->words << 6) - 1u;
+    x = ~bitmap_word(p, t, w) & (~(uint64_t)0 << (pos & 63u));
+    n = mcd_popcount(x);
+    while (n <= r && w + 1u < t->words) {
+        r -= n;
+        x = ~bitmap_word(p, t, ++w);
+        n = mcd_popcount(x);
     }
-    return lo;
+    return n > r ? (w << 6) + select_in_word(x, r) : (t->words << 6) - 1u;
 }
 
-/* Keys (not counting key 0) in cells [0, c): the directory entry of c's 256-cell block, its
- * words before c, and the extra keys there. */
-static uint32_t rank(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w = c >> 6, block = c >> DIR_SHIFT, n = mcd_rd_u32(p + t->dir + 4u * block), k;
-    for (k = block << 2; k < w; ++k) n += mcd_popcount(mask_word(p, t, k));
-    if (c & 63u) n += mcd_popcount(mask_word(p, t, w) & (((uint64_t)1 << (c & 63u)) - 1u));
-    return n + (t->extras ? extras_before(p, t, c) : 0u);
+/* The last one below bit u (key 0's is bit 0), the first one above bit u (the last key's is
+ * above every other). */
+static uint32_t one_before(const uint8_t* p, const track_layout* t, uint32_t u) {
+    uint32_t w = u >> 6;
+    uint64_t m = bitmap_word(p, t, w) & (((uint64_t)1 << (u & 63u)) - 1u);
+    while (!m && w > 0) m = bitmap_word(p, t, --w);
+    return m ? (w << 6) + mcd_highest_bit(m) : 0u;
 }
 
-/* Keys in cell c. */
-static uint32_t keys_in_cell(const uint8_t* p, const track_layout* t, uint32_t c) {
-    if (!cell_set(p, t, c)) return 0;
-    return t->extras ? 1u + extras_before(p, t, c + 1u) - extras_before(p, t, c) : 1u;
+static uint32_t one_after(const uint8_t* p, const track_layout* t, uint32_t u) {
+    uint32_t w = u >> 6;
+    uint64_t m = (u & 63u) == 63u ? 0u : bitmap_word(p, t, w) & (~(uint64_t)0 << ((u & 63u) + 1u));
+    while (!m && w + 1u < t->words) m = bitmap_word(p, t, ++w);
+    return m ? (w << 6) + mcd_lowest_bit(m) : u;
 }
 
-/* The first set cell at or after c, or t->cells when there is none. */
-static uint32_t next_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w;
-    uint64_t m;
-    if (c >= t->cells) return t->cells;
-    w = c >> 6;
-    m = mask_word(p, t, w) & (~(uint64_t)0 << (c & 63u));
-    while (!m) {
-        if (++w >= t->words) return t->cells;
-        m = mask_word(p, t, w);
-    }
-    return (w << 6) + mcd_lowest_bit(m);
-}
-
-/* The last set cell at or before c (c < cells), or UINT32_MAX when there is none. */
-static uint32_t prev_set(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t w = c >> 6;
-    uint64_t m = mask_word(p, t, w);
-    if ((c & 63u) != 63u) m &= ((uint64_t)1 << ((c & 63u) + 1u)) - 1u;
-    while (!m) {
-        if (w == 0) return UINT32_MAX;
-        m = mask_word(p, t, --w);
-    }
-    return (w << 6) + mcd_highest_bit(m);
+/* The frame of key k, whose one is at bit u (its cell is u - k). */
+static uint32_t key_frame_at(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t u) {
+    return key_frame(p, t, k, u - k);
 }
 
 /* ---------------------------------------------------------------- key values */
-/* Decodes a track's keys in index order from a group's first key on. */
-typedef struct cursor {
-    uint32_t key;      /* index of the key the next call decodes */
-    uint32_t left;     /* keys left in the current group after the last decoded one */
-    uint32_t bit;      /* bit position (in the data area) of the next key record */
-    uint32_t exc;      /* bit position of the current group's next outlier */
-    uint8_t w[4];      /* residual widths of the current group */
-    uint32_t keybits;  /* bits of one key record in the current group */
-    int32_t q[4], q2[4]; /* the last two decoded values, for the prediction */
-} cursor;
+/* One group as its row and the next row's anchor give it. */
+typedef struct group_view {
+    uint32_t row;         /* the row (group) number; UINT32_MAX: none loaded */
+    uint32_t bit;         /* bit offset of its records in the data area */
+    uint32_t span;        /* keys from its anchor to the next anchor (0 for the last row) */
+    uint32_t rec_bits;    /* bits of one record */
+    uint8_t width[4], shift[4];
+    int32_t a0[4], d[4];  /* its anchor, and the next one's difference from it */
+} group_view;
 
-static int64_t floor_half(int64_t v) {
-    return v >= 0 ? v / 2 : -((-v + 1) / 2);
-}
-
-/* Enter group g: its entry gives the record layout and the first key, written to q and o. */
-static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4], uint32_t* o) {
-    const uint8_t* table = p + t->table;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t c, n, first = g << t->group_shift;
-    cur->bit = mcd_read_bits(table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    cur->keybits = t->grid_shift;
-    for (c = 0; c < t->dims; ++c) {
-        cur->w[c] = (uint8_t)mcd_read_bits(table, bit, WIDTH_BITS);
-        cur->keybits += cur->w[c];
-        bit += WIDTH_BITS;
-    }
-    *o = mcd_read_bits(table, bit, t->grid_shift);
-    bit += t->grid_shift;
-    for (c = 0; c < t->dims; ++c) {
-        q[c] = cur->q[c] = cur->q2[c] = mcd_read_signed(table, bit, t->abits[c]);
-        bit += t->abits[c];
-    }
-    n = t->keys - first < (1u << t->group_shift) ? t->keys - first : 1u << t->group_shift;
-    cur->left = n - 1u;
-    cur->exc = cur->bit + cur->left * cur->keybits;
-    cur->key = first + 1u;
-}
-
-/* Decode the key the cursor points at (its value into q, its in-cell offset into o). */
-static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4], uint32_t* o) {
-    const uint8_t* data = p + t->data;
-    uint32_t c, bit;
-    if (cur->left == 0) {
-        group_open(p, t, cur->key >> t->group_shift, cur, q, o);
+/* The anchor of row e (the key e * G, or the last key for the last row). */
+static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
+    uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
+    uint32_t c;
+    a[3] = 0;
+    if (t->anchor_bits <= 57u) { /* one load for all components */
+        uint64_t w = mcd_rd_u64(p + t->table + (size_t)(bit >> 3)) >> (bit & 7u);
+        for (c = 0; c < t->dims; ++c) {
+            uint32_t n = t->abits[c];
+            uint64_t sign = (uint64_t)1 << (n - 1u), u = w & ((sign << 1) - 1u);
+            a[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
+            w >>= n;
+        }
         return;
     }
-    bit = cur->bit;
-    *o = mcd_read_bits(data, bit, t->grid_shift);
-    bit += t->grid_shift;
     for (c = 0; c < t->dims; ++c) {
-        uint32_t w = cur->w[c];
-        int64_t v = cur->q[c];
-        if (w) {
-            int32_t r = mcd_read_signed(data, bit, w);
-            bit += w;
-            if (r == -(int32_t)((uint32_t)1 << (w - 1u)) && w > 0) {
-                v = mcd_read_signed(data, cur->exc, t->abits[c]); /* an outlier, stored whole */
-                cur->exc += t->abits[c];
-            } else {
-                v += floor_half((v - cur->q2[c]) * t->predictor + 1) + r;
+        a[c] = mcd_read_signed(p + t->table, bit, t->abits[c]);
+        bit += t->abits[c];
+    }
+}
+
+static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)e * t->row_bits;
+    uint32_t c, at = 0, widths, first = e << t->group_shift;
+    g->row = e;
+    g->bit = mcd_read_bits(table, bit, t->offset_bits);
+    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims);
+    for (c = 0; c < 4u; ++c) {
+        uint32_t w = c < t->dims ? (widths >> (WIDTH_BITS * c)) & 15u : 0u;
+        g->width[c] = (uint8_t)w;
+        g->shift[c] = (uint8_t)at;
+        at += w;
+    }
+    g->rec_bits = at;
+    row_anchor(p, t, e, g->a0);
+    if (e + 1u < t->rows) {
+        int32_t a1[4];
+        g->span = t->keys - 1u - first < (1u << t->group_shift) ? t->keys - 1u - first : 1u << t->group_shift;
+        row_anchor(p, t, e + 1u, a1);
+        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 in valid payloads */
+    } else {
+        g->span = 0;
+        memset(g->d, 0, sizeof g->d);
+    }
+}
+
+/* floor(v / 2^s) for any sign (a right shift of a negative number is implementation-defined
+ * in C): the biased value shifted. |v| < 2^37. */
+static int64_t floor_shift(int64_t v, uint32_t s) {
+    const int64_t bias = (int64_t)1 << 40;
+    return (int64_t)((uint64_t)(v + (bias << s)) >> s) - bias;
+}
+
+/* floor(v / n), n > 0 (C's division truncates). */
+static int64_t floor_div(int64_t v, int64_t n) {
+    return v >= 0 ? v / n : -((-v + n - 1) / n);
+}
+
+/* A record's fields: bits [bit, bit + rec_bits) of the data area (rec_bits <= 60). */
+static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t bit) {
+    uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
+    if (g->rec_bits > 57u) w |= mcd_rd_u64(data + (bit >> 3) + 7u) << (56u - (bit & 7u)); /* wide records */
+    return w;
+}
+
+/* Component c's field of a record word holds the escape code 2^(w - 1) (never for width 0). */
+static int escaped(const group_view* g, uint64_t w, uint32_t c) {
+    uint32_t wc = g->width[c];
+    return wc && ((uint32_t)(w >> g->shift[c]) & (((uint32_t)1 << wc) - 1u)) == (uint32_t)1 << (wc - 1u);
+}
+
+/* Record i's component c when its field holds the escape code: the outlier, stored whole
+ * after the group's records in record and component order. */
+static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
+    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit;
+    for (j = 1; j < i; ++j, bit += g->rec_bits) {
+        uint64_t w = record_word(data, g, bit);
+        for (k = 0; k < t->dims; ++k)
+            if (escaped(g, w, k)) at += t->abits[k];
+    }
+    {
+        uint64_t w = record_word(data, g, bit);
+        for (k = 0; k < c; ++k)
+            if (escaped(g, w, k)) at += t->abits[k];
+    }
+    return mcd_read_signed(data, at, t->abits[c]);
+}
+
+/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read. */
+static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int32_t q[4]) {
+    const uint8_t* data = p + t->data;
+    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, bit, full;
+    uint64_t w;
+    if (i == 0) { /* an anchor */
+        if (g->row == e) memcpy(q, g->a0, 4u * sizeof q[0]);
+        else row_anchor(p, t, e, q);
+        return;
+    }
+    if (g->row != e) group_load(p, t, e, g);
+    if (i >= g->span) { /* the track's last key: the next anchor */
+        for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+        return;
+    }
+    bit = g->bit + (i - 1u) * g->rec_bits;
+    w = record_word(data, g, bit);
+    full = g->span == (1u << t->group_shift);
+    q[3] = 0;
+    for (c = 0; c < t->dims; ++c) {
+        uint32_t wc = g->width[c];
+        int64_t pred = (int64_t)g->d[c] * (int64_t)i;
+        pred = g->a0[c] + (full ? floor_shift(pred, t->group_shift) : floor_div(pred, (int64_t)g->span));
+        if (wc) {
+            uint32_t sign = (uint32_t)1 << (wc - 1u), u = (uint32_t)(w >> g->shift[c]) & ((sign << 1) - 1u);
+            if (u == sign) { /* escaped: rare */
+                q[c] = outlier(data, t, g, i, c);
+                continue;
             }
-        } else {
-            v += floor_half((v - cur->q2[c]) * t->predictor + 1);
+            pred += (int64_t)(u ^ sign) - (int64_t)sign;
         }
         /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-        if (v > MAX_Q) v = MAX_Q;
-        if (v < -MAX_Q) v = -MAX_Q;
-        cur->q2[c] = cur->q[c];
-        q[c] = cur->q[c] = (int32_t)v;
+        q[c] = (int32_t)(pred > MAX_Q ? MAX_Q : pred < -MAX_Q ? -MAX_Q : pred);
     }
-    cur->bit = bit;
-    cur->left--;
-    cur->key++;
 }
 
 /* ---------------------------------------------------------------- sampling state */
-/* Where a key's time lies: its cell (NO_CELL for key 0, at frame 0) and how many later keys
- * share that cell. */
-#define NO_CELL UINT32_MAX
-typedef struct key_place {
-    uint32_t cell, after;
-} key_place;
-
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
- * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor at key i + 3. */
+ * last sample (i - 1 ... i + 2, ends repeated) with their curve, and the last group read. */
 typedef struct track_state {
     track_layout L;
     mcd_quat ref;
     float axis[4];
     uint32_t valid;
-    uint32_t i;          /* the segment [key i, key i + 1] the curve below belongs to */
-    key_place place[4];  /* where keys i - 1 ... i + 2 lie */
-    float t[4];          /* their frames */
-    float v[4][4];       /* their values */
-    float t1, t2, inv_h;
+    uint32_t i;     /* the segment [key i, key i + 1] the curve below belongs to */
+    uint32_t u3;    /* the unary bit of key min(i + 2, last) */
+    uint32_t pad;
+    float t[4];     /* frames of keys i - 1 ... i + 2 */
+    float v[4][4];  /* their values */
+    float t1, t2, inv_h, pad2;
     float coef[4][4];
-    cursor cur;          /* decodes key i + 3 next (when it exists) */
+    group_view group;
 } track_state;
 
 typedef struct node_plan {
@@ -290,6 +381,11 @@ typedef struct node_plan {
     int16_t track[3];   /* rotation, translation, scale track, or -1 */
     uint16_t pad;
 } node_plan;
+
+/* The scratch sizes are part of the format (docs/FORMAT.md, RMAL "Sampling"): changing these
+ * structures is a new section version. Plain 32-bit fields only, so every ABI agrees. */
+typedef char node_plan_is_48_bytes[sizeof(node_plan) == 48u ? 1 : -1];
+typedef char track_state_is_348_bytes[sizeof(track_state) == 348u ? 1 : -1];
 
 static size_t rma_scratch_size(const mcd_clip_view* v) {
     uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
@@ -301,52 +397,17 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-static float dequantize(const track_layout* t, uint32_t c, int32_t q) {
+/* Window slot `slot` from a decoded key. */
+static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int32_t q[4]) {
+    uint32_t c;
+    ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    return (float)((double)q * (double)t->step[c]);
+    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
-static float frame_of(const track_layout* t, uint32_t cell, uint32_t offset) {
-    return cell == NO_CELL ? 0.0f : (float)(1u + (cell << t->grid_shift) + offset);
-}
-
-/* The place of the key after one at `k`. */
-static key_place place_next(const uint8_t* p, const track_layout* t, key_place k) {
-    key_place n;
-    if (k.cell != NO_CELL && k.after > 0) {
-        n.cell = k.cell;
-        n.after = k.after - 1u;
-        return n;
-    }
-    n.cell = next_set(p, t, k.cell == NO_CELL ? 0u : k.cell + 1u);
-    n.after = n.cell < t->cells ? keys_in_cell(p, t, n.cell) - 1u : 0u;
-    return n;
-}
-
-/* The place of the key before one at `k` (k is not key 0). */
-static key_place place_prev(const uint8_t* p, const track_layout* t, key_place k) {
-    key_place n;
-    if (keys_in_cell(p, t, k.cell) > k.after + 1u) { /* not the first key of its cell */
-        n.cell = k.cell;
-        n.after = k.after + 1u;
-        return n;
-    }
-    n.cell = k.cell ? prev_set(p, t, k.cell - 1u) : NO_CELL;
-    n.after = 0;
-    return n;
-}
-
-/* The in-cell offset of key k >= 1 (0 on a grid of one frame), read directly. */
-static uint32_t key_offset(const uint8_t* p, const track_layout* t, uint32_t k) {
-    uint32_t g = k >> t->group_shift, pos = k & ((1u << t->group_shift) - 1u), c, keybits = t->grid_shift;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t base;
-    if (!t->grid_shift) return 0;
-    base = mcd_read_bits(p + t->table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    for (c = 0; c < t->dims; ++c) keybits += mcd_read_bits(p + t->table, bit + WIDTH_BITS * c, WIDTH_BITS);
-    if (pos == 0) return mcd_read_bits(p + t->table, bit + WIDTH_BITS * t->dims, t->grid_shift);
-    return mcd_read_bits(p + t->data, (uint64_t)base + (uint64_t)(pos - 1u) * keybits, t->grid_shift);
+static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
+    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
+    ts->t[to] = ts->t[from];
 }
 
 static void set_curve(track_state* ts) {
@@ -370,82 +431,44 @@ static void set_curve(track_state* ts) {
     ts->valid = 1;
 }
 
-/* Decode the key after slot `slot - 1`'s into slot `slot`. */
-static void load_next(const uint8_t* p, track_state* ts, uint32_t slot) {
-    int32_t q[4];
-    uint32_t o, c;
-    cursor_next(p, &ts->L, &ts->cur, q, &o);
-    ts->place[slot] = place_next(p, &ts->L, ts->place[slot - 1u]);
-    ts->t[slot] = frame_of(&ts->L, ts->place[slot].cell, o);
-    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = dequantize(&ts->L, c, q[c]);
-}
-
-static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
-    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
-    ts->t[to] = ts->t[from];
-    ts->place[to] = ts->place[from];
-}
-
-/* The last key at or before integer frame xi and its place. */
-static uint32_t key_at_or_before(const uint8_t* p, const track_layout* t, uint32_t xi, key_place* at) {
-    uint32_t cx, r, n, j;
-    at->cell = NO_CELL;
-    at->after = 0;
-    if (xi == 0) return 0;
-    cx = (xi - 1u) >> t->grid_shift;
-    r = rank(p, t, cx);
-    n = keys_in_cell(p, t, cx);
-    for (j = n; j > 0; --j)
-        if (1u + (cx << t->grid_shift) + key_offset(p, t, r + j) <= xi) {
-            at->cell = cx;
-            at->after = n - j;
-            return r + j;
-        }
-    if (r == 0) return 0;
-    at->cell = prev_set(p, t, cx - 1u); /* r > 0: an earlier cell holds keys */
-    return r;
-}
-
-/* Random access: the segment holding frame position x, its four keys decoded afresh. */
+/* Random access: the segment holding frame position x, its four keys read afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, i, first, k, c, o, xi = (uint32_t)x;
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
     int32_t q[4];
-    key_place at;
-    /* i: the last key at or before x; the segment [i, i + 1], the last one at the clip's end. */
-    i = key_at_or_before(p, t, xi, &at);
-    if (i >= last) { /* x is the last frame: the last segment */
+    if (xi > t->frames - 1u) xi = t->frames - 1u;
+    c = cell_of(t, xi);
+    u[1] = cell_end(p, t, c);
+    i = u[1] - c - 1u; /* the ones before the zero closing c are the keys in cells up to c */
+    u[1] = one_before(p, t, u[1]);
+    /* x at the last frame: its segment is the one before. Keys of x's own cell after x (at
+     * most a cell's frames; key 0 is frame 0): the key before them. */
+    if (i >= last) {
         i = last - 1u;
-        at = place_prev(p, t, at);
+        u[1] = one_before(p, t, u[1]);
     }
+    while (t->in_cell_bits && i > 0 && key_frame_at(p, t, i, u[1]) > xi) {
+        i--;
+        u[1] = one_before(p, t, u[1]);
+    }
+    u[0] = i > 0 ? one_before(p, t, u[1]) : u[1];
+    u[2] = one_after(p, t, u[1]);
+    u[3] = i + 2u <= last ? one_after(p, t, u[2]) : u[2];
     ts->i = i;
-    ts->place[1] = at;
-    ts->place[0] = i == 0 ? at : place_prev(p, t, at);
-    /* Decode keys from i - 1 (or 0) on: open its group and walk the records before it. */
-    first = i ? i - 1u : 0u;
-    group_open(p, t, first >> t->group_shift, &ts->cur, q, &o);
-    for (k = first & ~((1u << t->group_shift) - 1u); k < first; ++k) cursor_next(p, t, &ts->cur, q, &o);
-    for (c = 0; c < t->dims; ++c) ts->v[0][c] = dequantize(t, c, q[c]);
-    ts->t[0] = frame_of(t, ts->place[0].cell, o);
-    if (i == 0) {
-        repeat_slot(ts, 1, 0);
-    } else {
-        cursor_next(p, t, &ts->cur, q, &o);
-        for (c = 0; c < t->dims; ++c) ts->v[1][c] = dequantize(t, c, q[c]);
-        ts->t[1] = frame_of(t, ts->place[1].cell, o);
+    ts->u3 = u[3];
+    for (s = 0; s < 4u; ++s) {
+        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
+        if (j > last) j = last;
+        key_value(p, t, &ts->group, j, q);
+        store_key(ts, s, key_frame_at(p, t, j, u[s]), q);
     }
-    load_next(p, ts, 2);
-    if (i + 2u <= last)
-        load_next(p, ts, 3);
-    else
-        repeat_slot(ts, 3, 2);
     set_curve(ts);
 }
 
-/* The curve of one track at x: the cached segment, a step or two forward in sequential
- * playback, or a fresh locate. */
+/* The curve of one track at x: the cached segment, the next one in sequential playback, or a
+ * fresh locate. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, last = ts->L.keys - 1u, steps;
+    uint32_t c, last = ts->L.keys - 1u;
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -454,20 +477,23 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
     } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
-        for (steps = 0; steps < 2 && x >= ts->t[2] && ts->i + 1u < last; ++steps) {
+        /* Sequential playback moves on by a key; anything further is a random access. */
+        if (ts->i + 2u <= last && x < ts->t[3]) {
             memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
             memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
-            memmove(ts->place, ts->place + 1, sizeof ts->place[0] * 3u);
             ts->i++;
-            if (ts->i + 2u <= last)
-                load_next(p, ts, 3);
-            else
+            if (ts->i + 2u <= last) {
+                int32_t q[4];
+                ts->u3 = one_after(p, &ts->L, ts->u3);
+                key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
+                store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
+            } else {
                 repeat_slot(ts, 3, 2);
-        }
-        if (x >= ts->t[2] && !(x == ts->t[2] && ts->i + 1u == last))
-            locate(p, ts, x);
-        else
+            }
             set_curve(ts);
+        } else {
+            locate(p, ts, x);
+        }
     }
     s = (x - ts->t1) * ts->inv_h;
     for (c = 0; c < ts->L.dims; ++c)
@@ -487,14 +513,14 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
     for (i = 0; i < H.tracks; ++i) {
         track_state* ts = &tracks[i];
         memset(ts, 0, sizeof *ts);
-        track_geometry(d, H.frames, H.group_shift, at, H.size, &ts->L);
-        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 24);
-        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 32, ts->axis);
-        if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
+        track_geometry(d, H.frames, at, H.size, &ts->L);
+        ts->group.row = UINT32_MAX;
+        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
+        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
+        if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
             int32_t q[4];
-            uint32_t o, c;
-            group_open(p, &ts->L, 0, &ts->cur, q, &o);
-            for (c = 0; c < ts->L.dims; ++c) ts->v[0][c] = dequantize(&ts->L, c, q[c]);
+            row_anchor(p, &ts->L, 0, q);
+            store_key(ts, 0, 0, q);
         }
         at = ts->L.end;
         d += desc_size(ts->L.kind);
@@ -549,88 +575,96 @@ static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tran
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Every rule of one track's mask, directory, group table and data, decoding every key. */
-static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
-    uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, tbits;
-    uint32_t w, set = 0, g, c, k, key = 0, last_frame = 0, prev_extra = 0;
-    key_place place = {NO_CELL, 0};
-    cursor cur;
-    /* Mask: no bit past the cells; the directory counts the keys before each 256 cells. */
-    for (w = 0; w < t->words; ++w) {
-        uint64_t m = mask_word(p, t, w);
-        if ((w & 3u) == 0 && mcd_rd_u32(p + t->dir + 4u * (w >> 2)) != set) return MCD_ERROR_MALFORMED;
-        if (w + 1u == t->words && (t->cells & 63u) && (m >> (t->cells & 63u))) return MCD_ERROR_MALFORMED;
-        set += mcd_popcount(m);
-    }
-    if (set + t->extras != t->keys - 1u) return MCD_ERROR_MALFORMED;
-    /* Extra keys: sorted cells that hold a key already; the list's padding is zero. */
-    for (k = 0; k < t->extras; ++k) {
-        uint32_t e = mcd_read_bits(p + t->extra, (uint64_t)k * t->extra_bits, t->extra_bits);
-        if (e >= t->cells || e < prev_extra || !cell_set(p, t, e)) return MCD_ERROR_MALFORMED;
-        prev_extra = e;
-    }
-    for (tbits = (uint64_t)t->extras * t->extra_bits; tbits < 32u * (((uint64_t)t->extras * t->extra_bits + 31u) / 32u); ++tbits)
-        if (mcd_read_bits(p + t->extra, tbits, 1)) return MCD_ERROR_MALFORMED;
-    /* The last frame is a key: the last cell is set. */
-    if (t->keys > 1u && !((mask_word(p, t, (t->cells - 1u) >> 6) >> ((t->cells - 1u) & 63u)) & 1u)) return MCD_ERROR_MALFORMED;
-    /* Group table padding. */
-    tbits = (uint64_t)t->groups * t->entry_bits;
-    for (; tbits < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++tbits)
-        if (mcd_read_bits(p + t->table, tbits, 1)) return MCD_ERROR_MALFORMED;
-    /* Every key, in order: records and outliers within the data area, groups back to back. */
-    for (g = 0; g < t->groups; ++g) {
-        uint64_t ebit = (uint64_t)g * t->entry_bits + t->offset_bits;
-        uint32_t n = t->keys - (g << t->group_shift), keybits = t->grid_shift;
-        int32_t q[4];
-        uint32_t o;
-        if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
-        if (mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits, t->offset_bits) != bit) return MCD_ERROR_MALFORMED;
-        for (c = 0; c < t->dims; ++c) {
-            uint32_t width = mcd_read_bits(p + t->table, ebit + WIDTH_BITS * c, WIDTH_BITS);
-            if (width > 30u) return MCD_ERROR_MALFORMED;
-            keybits += width;
-        }
-        if (bit + (uint64_t)(n - 1u) * keybits > data_bits) return MCD_ERROR_MALFORMED;
-        cur.left = 0;
-        cur.key = g << t->group_shift;
-        group_open(p, t, g, &cur, q, &o);
-        for (k = 0; k < n; ++k) {
-            uint32_t cell, frame;
-            (void)cell;
-            if (k > 0) {
-                /* Outliers: the escape codes of this record tell how many bits it consumes. */
-                uint64_t need = cur.exc;
-                uint32_t b = cur.bit + t->grid_shift;
-                for (c = 0; c < t->dims; ++c) {
-                    if (cur.w[c] && mcd_read_signed(p + t->data, b, cur.w[c]) == -(int32_t)((uint32_t)1 << (cur.w[c] - 1u)))
-                        need += t->abits[c];
-                    b += cur.w[c];
+/* Bits [from, to) of p are zero. */
+static int zero_bits(const uint8_t* p, uint64_t from, uint64_t to) {
+    for (; from < to; ++from)
+        if (mcd_read_bits(p, from, 1)) return 0;
+    return 1;
+}
+
+/* Every rule of one track's bitmap, rank table, group table and records, reading every key. */
+static mcd_result check_track(const uint8_t* p, const track_layout* t) {
+    uint64_t total = 0, data_bits = 8u * (uint64_t)t->data_bytes, bits;
+    uint32_t b, e, c, j;
+    group_view g;
+    /* Key times: K ones and NC zeros, zero bits after them; key 0 alone in cell 0, the last
+     * key alone in the last cell; frames increasing, interior keys before the last frame; each
+     * rank entry the keys in the cells below its block. */
+    {
+        uint64_t n = (uint64_t)t->keys + t->cells, bit;
+        uint32_t k = 0, cell = 0, last_frame = 0, in_cell = 0;
+        if (!zero_bits(p + t->bitmap, n, 64u * (uint64_t)t->words)) return MCD_ERROR_MALFORMED;
+        for (bit = 0; bit < n; ++bit) {
+            if ((cell & 63u) == 0 && in_cell == 0 &&
+                mcd_read_bits(p + t->rank, (uint64_t)(cell >> RANK_SHIFT) * t->rank_bits, t->rank_bits) != k)
+                return MCD_ERROR_MALFORMED;
+            if ((bitmap_word(p, t, (uint32_t)(bit >> 6)) >> (bit & 63u)) & 1u) {
+                uint32_t f;
+                if (k >= t->keys || cell >= t->cells) return MCD_ERROR_MALFORMED;
+                f = key_frame(p, t, k, cell);
+                if (cell == 0 || cell == t->cells - 1u) {
+                    if (in_cell || f != cell_frame(t, cell)) return MCD_ERROR_MALFORMED;
+                } else if (f > t->frames - 2u) {
+                    return MCD_ERROR_MALFORMED;
                 }
-                if (need > data_bits) return MCD_ERROR_MALFORMED;
-                cursor_next(p, t, &cur, q, &o);
-            }
-            for (c = 0; c < t->dims; ++c) {
-                if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
-                if (!mcd_in_bounds(dequantize(t, c, q[c]))) return MCD_ERROR_MALFORMED;
-            }
-            if (key == 0) {
-                if (o != 0) return MCD_ERROR_MALFORMED; /* key 0 is frame 0 */
+                if (k > 0 && f <= last_frame) return MCD_ERROR_MALFORMED;
+                last_frame = f;
+                k++;
+                in_cell++;
             } else {
-                place = place_next(p, t, place);
-                cell = place.cell;
-                frame = 1u + (cell << t->grid_shift) + o;
-                if (frame <= last_frame || frame > frames - 1u) return MCD_ERROR_MALFORMED;
-                if (key == t->keys - 1u && frame != frames - 1u) return MCD_ERROR_MALFORMED;
-                last_frame = frame;
+                if (cell >= t->cells) return MCD_ERROR_MALFORMED;
+                cell++;
+                in_cell = 0;
             }
-            key++;
         }
-        bit = cur.exc;
+        if (k != t->keys || cell != t->cells) return MCD_ERROR_MALFORMED;
+        /* The last cell holds exactly the last key: "0 1 0" ends the bits (or "1 0" alone). */
+        if (t->cells > 1u && (!((bitmap_word(p, t, (uint32_t)((n - 2u) >> 6)) >> ((n - 2u) & 63u)) & 1u) ||
+                              ((bitmap_word(p, t, (uint32_t)((n - 3u) >> 6)) >> ((n - 3u) & 63u)) & 1u)))
+            return MCD_ERROR_MALFORMED;
+    }
+    if (!zero_bits(p + t->rank, (uint64_t)((t->cells + 63u) / 64u) * t->rank_bits,
+                   8u * packed_bytes((t->cells + 63u) / 64u, t->rank_bits)))
+        return MCD_ERROR_MALFORMED;
+    if (!zero_bits(p + t->table, (uint64_t)t->rows * t->row_bits, 8u * packed_bytes(t->rows, t->row_bits)))
+        return MCD_ERROR_MALFORMED;
+    if (t->in_cell_bits &&
+        !zero_bits(p + t->places, (uint64_t)t->keys * t->in_cell_bits, 8u * packed_bytes(t->keys, t->in_cell_bits)))
+        return MCD_ERROR_MALFORMED;
+    /* Groups back to back from bit 0, each its records then its outliers; the last row
+     * (the last anchor) marks the end and has widths 0. */
+    for (e = 0; e < t->rows; ++e) {
+        group_load(p, t, e, &g);
+        if (g.bit != total) return MCD_ERROR_MALFORMED;
+        if (e + 1u == t->rows) {
+            if (g.rec_bits) return MCD_ERROR_MALFORMED;
+            break;
+        }
+        bits = (uint64_t)(g.span - 1u) * g.rec_bits;
+        if (total + bits > data_bits) return MCD_ERROR_MALFORMED;
+        for (j = 1; j < g.span; ++j)
+            for (c = 0; c < t->dims; ++c)
+                if (g.width[c] && mcd_read_bits(p + t->data, total + (uint64_t)(j - 1u) * g.rec_bits + g.shift[c], g.width[c]) ==
+                                      (uint32_t)1 << (g.width[c] - 1u))
+                    bits += t->abits[c];
+        total += bits;
+        if (total > data_bits) return MCD_ERROR_MALFORMED;
     }
     /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
-    if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
-    for (; bit < data_bits; ++bit)
-        if (mcd_read_bits(p + t->data, bit, 1)) return MCD_ERROR_MALFORMED;
+    if (t->data_bytes != mcd_align4((size_t)((total + 7u) / 8u))) return MCD_ERROR_MALFORMED;
+    if (!zero_bits(p + t->data, total, data_bits)) return MCD_ERROR_MALFORMED;
+    /* Every key's value within range. */
+    g.row = UINT32_MAX;
+    for (b = 0; b < t->keys; ++b) {
+        int32_t q[4];
+        int64_t raw;
+        key_value(p, t, &g, b, q);
+        for (c = 0; c < t->dims; ++c) {
+            raw = q[c];
+            if (raw >= MAX_Q || raw <= -MAX_Q) return MCD_ERROR_MALFORMED;
+            if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
+        }
+    }
     return MCD_OK;
 }
 
@@ -662,17 +696,14 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
                 kind = H.descs[off];
                 if (kind == 0 || (kind != kinds[m][0] && kind != kinds[m][1])) return MCD_ERROR_MALFORMED;
                 if ((size_t)(H.descs - p) + off + desc_size(kind) > H.size) return MCD_ERROR_MALFORMED;
-                if (kind == KIND_MRP || kind == KIND_TWIST) {
-                    if (mcd_rd_u16(H.descs + off + 30)) return MCD_ERROR_MALFORMED;
-                }
+                if ((kind == KIND_MRP || kind == KIND_TWIST) && mcd_rd_u16(H.descs + off + 26)) return MCD_ERROR_MALFORMED;
                 if (kind == KIND_TWIST) {
-                    const uint8_t* a = H.descs + off + 32;
+                    const uint8_t* a = H.descs + off + 28;
                     float ax = (float)(int16_t)mcd_rd_u16(a), ay = (float)(int16_t)mcd_rd_u16(a + 2);
                     float az = (float)(int16_t)mcd_rd_u16(a + 4);
                     if (mcd_rd_u16(a + 6)) return MCD_ERROR_MALFORMED;
                     if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
                 }
-                /* The geometry is checked below, once every descriptor's size is known. */
                 off += desc_size(kind);
                 track++;
             }
@@ -687,11 +718,10 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
         if (p[k]) return MCD_ERROR_MALFORMED;
     for (i = 0, off = 0; i < H.tracks; ++i) {
         track_layout t;
-        const uint8_t* d = H.descs + off;
-        r = track_geometry(d, H.frames, H.group_shift, at, H.size, &t);
+        r = track_geometry(H.descs + off, H.frames, at, H.size, &t);
         if (r != MCD_OK) return r;
         if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
-        r = check_track(p, &t, H.frames);
+        r = check_track(p, &t);
         if (r != MCD_OK) return r;
         at = t.end;
         off += desc_size(t.kind);

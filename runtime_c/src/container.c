@@ -363,12 +363,16 @@ mcd_result mcd_get_node_info(const mcd_asset* asset, uint32_t skeleton, uint32_t
     r = mcd_skel_record(s, node);
     out->name = (const char*)(s + mcd_rd_u32(s + 12) + mcd_rd_u32(r + 4));
     out->parent = mcd_rd_i32(r);
-    out->kind = r[48];
-    for (k = 0; k < 3; ++k) out->rest_translation[k] = mcd_rd_f32(r + 8 + 4 * k);
-    for (k = 0; k < 4; ++k) out->rest_rotation[k] = mcd_rd_f32(r + 20 + 4 * k);
-    for (k = 0; k < 3; ++k) out->rest_scale[k] = mcd_rd_f32(r + 36 + 4 * k);
-    out->channel_count = r[49];
-    for (k = 0; k < 6; ++k) out->channels[k] = r[50 + k];
+    out->kind = r[20];
+    {
+        mcd_transform rest;
+        mcd_skel_rest(s, node, &rest);
+        for (k = 0; k < 3; ++k) out->rest_translation[k] = rest.translation[k];
+        for (k = 0; k < 4; ++k) out->rest_rotation[k] = rest.rotation[k];
+        for (k = 0; k < 3; ++k) out->rest_scale[k] = rest.scale[k];
+    }
+    out->channel_count = r[21];
+    for (k = 0; k < 6; ++k) out->channels[k] = r[22 + k];
     out->reserved[0] = out->reserved[1] = 0;
     return MCD_OK;
 }

@@ -14,7 +14,8 @@
 #define MCD_MAX_SECTIONS 4096u
 #define MCD_MAX_NODES 1024u
 #define MCD_MAX_CLIPS 65535u
-#define MCD_SKEL_NODE_SIZE 56u
+#define MCD_SKEL_NODE_SIZE 32u
+#define MCD_SKEL_REST_SIZE 28u /* rest rotation x y z w and scale x y z, when SKEL flag bit 0 is set */
 #define MCD_CLIP_RECORD_SIZE 48u
 #define MCD_MAX_NAME_BYTES 255u /* clip and node names, without the NUL */
 #define MCD_MAX_FRAME_RATE 100000.0f
@@ -208,6 +209,9 @@ static inline const uint8_t* mcd_skel_record(const uint8_t* skel, uint32_t node)
 }
 static inline int32_t mcd_skel_parent(const uint8_t* skel, uint32_t node) {
     return mcd_rd_i32(mcd_skel_record(skel, node));
+}
+static inline uint32_t mcd_skel_kind(const uint8_t* skel, uint32_t node) {
+    return mcd_skel_record(skel, node)[20];
 }
 /* The rest translation (BVH OFFSET, glTF rest T) of a node. */
 void mcd_skel_rest_translation(const uint8_t* skel, uint32_t node, float out[3]);

@@ -24,9 +24,13 @@ void mcd_skel_rest_translation(const uint8_t* skel, uint32_t node, float out[3])
 void mcd_skel_rest(const uint8_t* skel, uint32_t node, mcd_transform* out) {
     const uint8_t* r = mcd_skel_record(skel, node);
     uint32_t k;
+    mcd_transform_identity(out);
     for (k = 0; k < 3; ++k) out->translation[k] = mcd_rd_f32(r + 8 + 4 * k);
-    for (k = 0; k < 4; ++k) out->rotation[k] = mcd_rd_f32(r + 20 + 4 * k);
-    for (k = 0; k < 3; ++k) out->scale[k] = mcd_rd_f32(r + 36 + 4 * k);
+    if (mcd_rd_u32(skel + 4) & 1u) { /* rest rotations and scales follow the node records */
+        const uint8_t* e = skel + 16 + (size_t)mcd_skel_nodes(skel) * MCD_SKEL_NODE_SIZE + (size_t)node * MCD_SKEL_REST_SIZE;
+        for (k = 0; k < 4; ++k) out->rotation[k] = mcd_rd_f32(e + 4 * k);
+        for (k = 0; k < 3; ++k) out->scale[k] = mcd_rd_f32(e + 16 + 4 * k);
+    }
 }
 
 /* ---------------------------------------------------------------- names */
@@ -83,36 +87,45 @@ static int bounded(float v) {
 }
 
 mcd_result mcd_skel_check(const uint8_t* s, uint32_t size) {
-    uint32_t n, i, strings;
+    uint32_t n, i, strings, flags;
+    uint64_t expect;
     float cm;
     if (size < 16) return MCD_ERROR_MALFORMED;
     n = mcd_rd_u32(s);
     if (n < 1 || n > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(s + 4) != 0) return MCD_ERROR_MALFORMED;
+    flags = mcd_rd_u32(s + 4);
+    if (flags > 1u) return MCD_ERROR_MALFORMED;
     cm = mcd_rd_f32(s + 8);
     if (!mcd_finite(cm) || !(cm > 0.0f) || cm > MCD_MAX_ABS_VALUE) return MCD_ERROR_MALFORMED;
     strings = mcd_rd_u32(s + 12);
-    if ((uint64_t)strings != 16u + (uint64_t)n * MCD_SKEL_NODE_SIZE || strings > size) return MCD_ERROR_MALFORMED;
+    expect = 16u + (uint64_t)n * (MCD_SKEL_NODE_SIZE + (flags ? MCD_SKEL_REST_SIZE : 0u));
+    if ((uint64_t)strings != expect || strings > size) return MCD_ERROR_MALFORMED;
     for (i = 0; i < n; ++i) {
         const uint8_t* r = mcd_skel_record(s, i);
         int32_t parent = mcd_rd_i32(r);
-        uint32_t kind = r[48], channels = r[49], c, k, seen = 0;
+        uint32_t kind = r[20], channels = r[21], c, k, seen = 0;
         if (parent < -1 || parent >= (int32_t)i) return MCD_ERROR_MALFORMED;
         /* End sites and virtual points are leaves. */
-        if (parent >= 0 && mcd_skel_record(s, (uint32_t)parent)[48] != MCD_NODE_JOINT) return MCD_ERROR_MALFORMED;
+        if (parent >= 0 && mcd_skel_kind(s, (uint32_t)parent) != MCD_NODE_JOINT) return MCD_ERROR_MALFORMED;
         if (!mcd_valid_name(s + strings, size - strings, mcd_rd_u32(r + 4), 0)) return MCD_ERROR_MALFORMED;
-        for (k = 0; k < 10; ++k)
+        for (k = 0; k < 3; ++k)
             if (!bounded(mcd_rd_f32(r + 8 + 4 * k))) return MCD_ERROR_MALFORMED;
-        if (!mcd_unit_quat_at(r + 20)) return MCD_ERROR_MALFORMED;
         if (kind > MCD_NODE_VIRTUAL || channels > 6 || (kind != MCD_NODE_JOINT && channels != 0)) return MCD_ERROR_MALFORMED;
         for (k = 0; k < 6; ++k) {
-            c = r[50 + k];
+            c = r[22 + k];
             if (k < channels) {
                 if (c > 5 || (seen & (1u << c))) return MCD_ERROR_MALFORMED;
                 seen |= 1u << c;
             } else if (c != 0xFF) {
                 return MCD_ERROR_MALFORMED;
             }
+        }
+        if (mcd_rd_u32(r + 28) != 0) return MCD_ERROR_MALFORMED;
+        if (flags) {
+            const uint8_t* e = s + 16 + (size_t)n * MCD_SKEL_NODE_SIZE + (size_t)i * MCD_SKEL_REST_SIZE;
+            if (!mcd_unit_quat_at(e)) return MCD_ERROR_MALFORMED;
+            for (k = 4; k < 7; ++k)
+                if (!bounded(mcd_rd_f32(e + 4 * k))) return MCD_ERROR_MALFORMED;
         }
     }
     return MCD_OK;

@@ -15,14 +15,15 @@ enum {
     MCD_EXERCISE_BROKEN = -1   /* a promise was broken; `why` says which */
 };
 
-/* mcd_resident_size, then mcd_open with resident memory of that size (16-byte aligned,
- * malloc'd into *resident, NULL when the asset needs none; the caller frees it). */
-mcd_result mcd_exercise_open(const void* data, size_t size, uint32_t flags, mcd_asset* out, void** resident);
-
-/* Validates `data` with `validate_flags`; if accepted, opens it, calls every query and samples
- * up to `max_clips` clips at a handful of times (inside, at both ends, before, after, between
- * frames) with every flag combination. Breaks when a sample fails, an output float is not
- * finite or a quaternion is not unit, or two entry points disagree. */
+/* Validates `data` with `validate_flags` and opens it with the same flags (the two must agree).
+ * If accepted, opens it again with MCD_OPEN_PREVALIDATED (it passed mcd_validate: the only case
+ * the flag allows), calls every query on both opens, and samples up to `max_clips` clips at a
+ * handful of times (inside, at both ends, before, after, between frames) with every flag
+ * combination, each clip with the asset's scratch and with a scratch of exactly the size its
+ * clip info states (malloc'd at that size: ASan sees a codec writing past its stated need).
+ * Breaks when a sample fails, an output float is not finite or a quaternion is not unit, two
+ * entry points or the two scratches disagree, or a scratch smaller than the clip's need is
+ * not refused. */
 int mcd_exercise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips,
                  char* why, size_t why_size);
 

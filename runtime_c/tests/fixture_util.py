@@ -32,9 +32,11 @@ def c_bytes(name: str, data: bytes) -> list[str]:
 
 
 def c_floats(name: str, values: np.ndarray, digits: int) -> list[str]:
-    """``static const float name[] = {...};``, 7 values (one pose row) a line."""
-    vals = np.asarray(values, dtype=np.float32).reshape(-1)
+    """``static const float name[] = {...};``, one pose row (the last axis of ``values``) a line."""
+    arr = np.asarray(values, dtype=np.float32)
+    row = arr.shape[-1] if arr.ndim else 1
+    vals = arr.reshape(-1)
     lines = [f"static const float {name}[{len(vals)}] = {{"]
-    for i in range(0, len(vals), 7):
-        lines.append("    " + ", ".join(f"{float(v):.{digits}e}f" for v in vals[i:i + 7]) + ",")
+    for i in range(0, len(vals), row):
+        lines.append("    " + ", ".join(f"{float(v):.{digits}e}f" for v in vals[i:i + row]) + ",")
     return lines + ["};"]

@@ -1,13 +1,12 @@
 /* Test runner and shared helpers. Usage:
- *     mcd_tests [--golden DIR] [--regressions DIR] [test-name ...]
+ *     mcd_tests [--golden DIR] [--golden-v1 DIR] [--regressions DIR] [test-name ...]
  * Without names every test runs. Exit status: 0 passed, 1 a test failed, 77 every test that ran
- * skipped itself. The folders default to the compile-time MCD_TEST_GOLDEN_DIR and
- * MCD_TEST_REGRESSION_DIR so `ctest` and `make test` need no arguments. */
+ * skipped itself. The folders default to the compile-time MCD_TEST_GOLDEN_DIR,
+ * MCD_TEST_GOLDEN_V1_DIR and MCD_TEST_REGRESSION_DIR so `ctest` and `make test` need no
+ * arguments. */
 #define _POSIX_C_SOURCE 200809L
 
 #include "harness.h"
-
-#include "exercise.h"
 
 #include <dirent.h>
 #include <stdarg.h>
@@ -18,7 +17,10 @@
 #include <sys/stat.h>
 
 #ifndef MCD_TEST_GOLDEN_DIR
-#define MCD_TEST_GOLDEN_DIR "../tests/golden/v1"
+#define MCD_TEST_GOLDEN_DIR "../tests/golden/v2"
+#endif
+#ifndef MCD_TEST_GOLDEN_V1_DIR
+#define MCD_TEST_GOLDEN_V1_DIR "../tests/golden/v1"
 #endif
 #ifndef MCD_TEST_REGRESSION_DIR
 #define MCD_TEST_REGRESSION_DIR "fuzz/regressions"
@@ -42,9 +44,11 @@ static const test_entry k_tests[] = {
 #define MAX_PRINTED_FAILURES 10
 
 static const char* g_golden_dir = MCD_TEST_GOLDEN_DIR;
+static const char* g_golden_v1_dir = MCD_TEST_GOLDEN_V1_DIR;
 static const char* g_regression_dir = MCD_TEST_REGRESSION_DIR;
 static unsigned long g_checks, g_failures;
 static const char* g_skip_reason;
+static char g_notes[2048];
 
 /* ---------------------------------------------------------------- checks */
 static void report_failure(const char* file, int line) {
@@ -95,12 +99,40 @@ void mcd_test_skip(const char* reason) {
     g_skip_reason = reason;
 }
 
+void mcd_test_note(const char* fmt, ...) {
+    size_t used = strlen(g_notes);
+    va_list ap;
+    if (used + 8 >= sizeof g_notes) return;
+    memcpy(g_notes + used, "    ", 5);
+    va_start(ap, fmt);
+    vsnprintf(g_notes + used + 4, sizeof g_notes - used - 5, fmt, ap);
+    va_end(ap);
+    used = strlen(g_notes);
+    g_notes[used] = '\n';
+    g_notes[used + 1] = 0;
+}
+
 unsigned long mcd_test_failures(void) {
     return g_failures;
 }
 
+int mcd_test_quick(void) {
+    const char* v = getenv("MCD_TEST_QUICK");
+    return v && v[0] && strcmp(v, "0") != 0;
+}
+
+size_t mcd_test_sweep_next(size_t pos, size_t quick_stride) {
+    static int quick = -1;
+    if (quick < 0) quick = mcd_test_quick();
+    return quick && pos >= 64u && quick_stride > 1u ? pos + quick_stride : pos + 1u;
+}
+
 const char* mcd_test_golden_dir(void) {
     return g_golden_dir;
+}
+
+const char* mcd_test_golden_v1_dir(void) {
+    return g_golden_v1_dir;
 }
 
 const char* mcd_test_regression_dir(void) {
@@ -210,7 +242,7 @@ size_t mcd_test_load_golden(mcd_golden** out) {
         return 0;
     }
     for (i = 0, kept = 0; i < count; ++i) {
-        mcd_result r = mcd_exercise_open(files[i].data, files[i].size, 0, &g[kept].asset, &g[kept].resident);
+        mcd_result r = mcd_open(files[i].data, files[i].size, 0, &g[kept].asset);
         if (r != MCD_OK) {
             /* Reported once here; the tests then run on the assets that did open. */
             FAIL("golden asset %s does not open: %s", files[i].path, mcd_result_string(r));
@@ -226,23 +258,25 @@ size_t mcd_test_load_golden(mcd_golden** out) {
 
 void mcd_test_free_golden(mcd_golden* g, size_t count) {
     size_t i;
-    for (i = 0; i < count; ++i) {
-        mcd_test_free_file(&g[i].file);
-        free(g[i].resident);
-    }
+    for (i = 0; i < count; ++i) mcd_test_free_file(&g[i].file);
     free(g);
 }
 
 /* ---------------------------------------------------------------- helpers */
-void* mcd_test_scratch(const mcd_asset* asset) {
-    size_t n = mcd_scratch_size(asset);
+void* mcd_test_scratch_sized(const mcd_asset* asset, size_t n) {
     void* p = NULL;
+    mcd_result r;
     if (n == 0 || posix_memalign(&p, 16, n) != 0) {
         FAIL("cannot allocate %lu scratch bytes", (unsigned long)n);
         return NULL;
     }
-    if (mcd_scratch_init(asset, p, n) != MCD_OK) FAIL("mcd_scratch_init failed");
+    r = mcd_scratch_init(asset, p, n);
+    if (r != MCD_OK) FAIL("mcd_scratch_init of %lu bytes: %s", (unsigned long)n, mcd_result_string(r));
     return p;
+}
+
+void* mcd_test_scratch(const mcd_asset* asset) {
+    return mcd_test_scratch_sized(asset, mcd_scratch_size(asset));
 }
 
 void mcd_test_free_scratch(void* scratch) {
@@ -264,6 +298,13 @@ uint32_t mcd_test_rd_u32(const uint8_t* p) {
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
+float mcd_test_rd_f32(const uint8_t* p) {
+    uint32_t u = mcd_test_rd_u32(p);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
 void mcd_test_wr_u32(uint8_t* p, uint32_t v) {
     p[0] = (uint8_t)v;
     p[1] = (uint8_t)(v >> 8);
@@ -279,6 +320,60 @@ void mcd_test_wr_u16(uint8_t* p, uint16_t v) {
 /* The checksum covers [24, total_size) (docs/FORMAT.md, header). */
 void mcd_test_fix_crc(uint8_t* asset, size_t size) {
     if (size >= 24) mcd_test_wr_u32(asset + 20, mcd_test_crc32(asset + 24, size - 24));
+}
+
+/* ---------------------------------------------------------------- container edits */
+const uint8_t* mcd_test_section(const uint8_t* asset, const char kind[4], uint32_t nth, uint32_t* out_index) {
+    uint32_t i, count = mcd_test_rd_u32(asset + 24);
+    for (i = 0; i < count; ++i) {
+        const uint8_t* e = asset + 32 + 16 * (size_t)i;
+        if (memcmp(e, kind, 4) == 0 && nth-- == 0) {
+            if (out_index) *out_index = i;
+            return e;
+        }
+    }
+    return NULL;
+}
+
+static size_t align16(size_t x) {
+    return (x + 15u) & ~(size_t)15u;
+}
+
+uint8_t* mcd_test_replace_section(const uint8_t* asset, uint32_t index, const uint8_t* data, uint32_t size,
+                                  size_t* out_size) {
+    uint32_t i, count = mcd_test_rd_u32(asset + 24);
+    size_t total = align16(32 + 16 * (size_t)count), pos;
+    uint8_t* out;
+    for (i = 0; i < count; ++i) total = align16(total + (i == index ? size : mcd_test_rd_u32(asset + 32 + 16 * (size_t)i + 12)));
+    out = (uint8_t*)calloc(1, total);
+    if (!out) {
+        FAIL("out of memory");
+        return NULL;
+    }
+    memcpy(out, asset, 32 + 16 * (size_t)count);
+    pos = align16(32 + 16 * (size_t)count);
+    for (i = 0; i < count; ++i) {
+        uint8_t* e = out + 32 + 16 * (size_t)i;
+        uint32_t n = i == index ? size : mcd_test_rd_u32(e + 12);
+        memcpy(out + pos, i == index ? data : asset + mcd_test_rd_u32(e + 8), n);
+        mcd_test_wr_u32(e + 8, (uint32_t)pos);
+        mcd_test_wr_u32(e + 12, n);
+        pos = align16(pos + n);
+    }
+    mcd_test_wr_u32(out + 16, (uint32_t)total);
+    mcd_test_fix_crc(out, total);
+    *out_size = total;
+    return out;
+}
+
+uint8_t* mcd_test_copy(const uint8_t* data, size_t size) {
+    uint8_t* p = (uint8_t*)malloc(size ? size : 1u);
+    if (!p) {
+        FAIL("out of memory");
+        return NULL;
+    }
+    memcpy(p, data, size);
+    return p;
 }
 
 uint32_t mcd_test_rand(uint32_t* state) {
@@ -320,26 +415,38 @@ int mcd_test_pose_finite(const mcd_transform* pose, uint32_t count) {
         for (k = 0; k < 4; ++k)
             if (!(pose[i].rotation[k] - pose[i].rotation[k] == 0.0f)) return 0;
         for (k = 0; k < 3; ++k)
-            if (!(pose[i].translation[k] - pose[i].translation[k] == 0.0f)) return 0;
+            if (!(pose[i].translation[k] - pose[i].translation[k] == 0.0f) ||
+                !(pose[i].scale[k] - pose[i].scale[k] == 0.0f))
+                return 0;
     }
     return 1;
 }
 
-double mcd_test_pose_gap(const mcd_transform* pose, const float* want, uint32_t count) {
+/* Rows of `row` floats: rotation, translation, then (row 10) scale. */
+static double pose_gap(const mcd_transform* pose, const float* want, uint32_t count, uint32_t row) {
     double worst = 0.0;
     uint32_t i, k;
     for (i = 0; i < count; ++i) {
-        const float* w = want + (size_t)i * 7u;
+        const float* w = want + (size_t)i * row;
         for (k = 0; k < 4u; ++k) {
             double d = fabs((double)pose[i].rotation[k] - w[k]);
             if (d > worst) worst = d;
         }
-        for (k = 0; k < 3u; ++k) {
-            double d = fabs((double)pose[i].translation[k] - w[4 + k]) / (1.0 + fabs(w[4 + k]));
+        for (k = 0; k + 4u < row; ++k) {
+            double got = k < 3u ? pose[i].translation[k] : pose[i].scale[k - 3u];
+            double d = fabs(got - w[4 + k]) / (1.0 + fabs(w[4 + k]));
             if (d > worst) worst = d;
         }
     }
     return worst;
+}
+
+double mcd_test_pose_gap_trs(const mcd_transform* pose, const float* want, uint32_t count) {
+    return pose_gap(pose, want, count, 10u);
+}
+
+double mcd_test_pose_gap(const mcd_transform* pose, const float* want, uint32_t count) {
+    return pose_gap(pose, want, count, 7u);
 }
 
 /* ---------------------------------------------------------------- runner */
@@ -357,6 +464,7 @@ int main(int argc, char** argv) {
     int first = 1, passed = 0, failed = 0, skipped = 0, ran = 0;
     while (first + 1 < argc && argv[first][0] == '-') {
         if (strcmp(argv[first], "--golden") == 0) g_golden_dir = argv[first + 1];
+        else if (strcmp(argv[first], "--golden-v1") == 0) g_golden_v1_dir = argv[first + 1];
         else if (strcmp(argv[first], "--regressions") == 0) g_regression_dir = argv[first + 1];
         else break;
         first += 2;
@@ -369,12 +477,13 @@ int main(int argc, char** argv) {
             return 2;
         }
     }
-    printf("mocodec %u.%u.%u tests (golden: %s)\n", MCD_VERSION_MAJOR, MCD_VERSION_MINOR, MCD_VERSION_PATCH,
-           g_golden_dir);
+    printf("mocodec %u.%u.%u tests (golden: %s)%s\n", MCD_VERSION_MAJOR, MCD_VERSION_MINOR, MCD_VERSION_PATCH,
+           g_golden_dir, mcd_test_quick() ? ", MCD_TEST_QUICK: damage sweeps shortened" : "");
     for (i = 0; i < n; ++i) {
         if (!selected(k_tests[i].name, argc, argv, first)) continue;
         g_checks = g_failures = 0;
         g_skip_reason = NULL;
+        g_notes[0] = 0;
         printf("%-28s ", k_tests[i].name);
         fflush(stdout);
         k_tests[i].fn();
@@ -393,6 +502,7 @@ int main(int argc, char** argv) {
             printf("ok (%lu checks)\n", g_checks);
             passed++;
         }
+        fputs(g_notes, stdout);
         fflush(stdout);
     }
     printf("%d passed, %d failed", passed, failed);

@@ -36,7 +36,7 @@ def main() -> None:
              "    " + ", ".join(str(int(f)) for f in frames), "};"]
     lines += c_bytes("k_ikp_fixture", asset)
     lines.append("/* The encoder's reconstruction: local pose of every node on every coded frame, "
-                 "qx qy qz qw tx ty tz. */")
+                 "qx qy qz qw tx ty tz sx sy sz. */")
     lines += c_floats("k_ikp_fixture_poses", poses, 9)
     lines += ["", "#endif", ""]
     (Path(__file__).parent / "ikpredict_fixture.h").write_text("\n".join(lines))

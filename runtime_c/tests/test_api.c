@@ -20,21 +20,21 @@ static void check_result_strings(void) {
 
 static void check_validate_open(const mcd_test_file* f) {
     mcd_asset a;
-    size_t resident;
     CHECK_RESULT(mcd_validate(NULL, f->size, 0), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_validate(f->data, f->size, 0x2u), MCD_ERROR_INVALID_ARGUMENT);
+    /* MCD_OPEN_PREVALIDATED is an mcd_open flag: mcd_validate does not take it. */
+    CHECK_RESULT(mcd_validate(f->data, f->size, MCD_OPEN_PREVALIDATED), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_validate(f->data, f->size, 0x4u), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_validate(f->data, f->size, 0x80000000u), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_open(NULL, f->size, 0, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_open(f->data, f->size, 0, NULL, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_open(f->data, f->size, 0x4u, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_resident_size(NULL, f->size, 0, &resident), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0x2u, &resident), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_resident_size(f->data, f->size, 0, &resident), MCD_OK);
-    if (resident > 0) {
-        /* Asked-for resident memory that is missing or short (the golden spline assets need none). */
-        CHECK_RESULT(mcd_open(f->data, f->size, 0, NULL, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
-    }
+    CHECK_RESULT(mcd_open(NULL, f->size, 0, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(NULL, f->size, MCD_OPEN_PREVALIDATED, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, MCD_OPEN_PREVALIDATED, NULL), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0x4u, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0x80000000u | MCD_OPEN_PREVALIDATED, &a), MCD_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(mcd_open(f->data, f->size, 0, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(f->data, f->size, MCD_VALIDATE_SKIP_CHECKSUM, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(f->data, f->size, MCD_OPEN_PREVALIDATED, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(f->data, f->size, MCD_OPEN_PREVALIDATED | MCD_VALIDATE_SKIP_CHECKSUM, &a), MCD_OK);
 }
 
 static void check_queries(const mcd_asset* a) {
@@ -74,19 +74,39 @@ static void check_queries(const mcd_asset* a) {
     CHECK(found == last);
 }
 
+/* The scratch any clip can use (mcd_scratch_size), and smaller ones: init takes any size from
+ * MCD_SCRATCH_MIN_SIZE (plus what the contact pass keeps), sampling checks each clip's need. */
 static void check_scratch_init(const mcd_asset* a) {
     size_t n = mcd_scratch_size(a);
     uint8_t* block = NULL;
-    CHECK(n > 0 && n % 16u == 0);
+    uint32_t c;
+    mcd_transform pose[1024];
+    CHECK(n >= MCD_SCRATCH_MIN_SIZE && n % 16u == 0);
     if (posix_memalign((void**)&block, 16, n + 16u) != 0) return;
     CHECK_RESULT(mcd_scratch_init(NULL, block, n), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_scratch_init(a, NULL, n), MCD_ERROR_INVALID_ARGUMENT);
-    CHECK_RESULT(mcd_scratch_init(a, block, n - 1u), MCD_ERROR_BUFFER_TOO_SMALL);
+    CHECK_RESULT(mcd_scratch_init(a, block, MCD_SCRATCH_MIN_SIZE - 1u), MCD_ERROR_BUFFER_TOO_SMALL);
     CHECK_RESULT(mcd_scratch_init(a, block, 0), MCD_ERROR_BUFFER_TOO_SMALL);
     CHECK_RESULT(mcd_scratch_init(a, block + 8, n), MCD_ERROR_INVALID_ARGUMENT); /* 8-aligned only */
     CHECK_RESULT(mcd_scratch_init(a, block + 1, n), MCD_ERROR_INVALID_ARGUMENT);
     CHECK_RESULT(mcd_scratch_init(a, block + 16, n), MCD_OK);
     CHECK_RESULT(mcd_scratch_init(a, block, n + 16u), MCD_OK); /* larger is fine */
+    for (c = 0; c < mcd_clip_count(a); ++c) {
+        static const uint32_t short_by[2] = {1, 16};
+        mcd_clip_info ci;
+        size_t k;
+        CHECK_RESULT(mcd_get_clip_info(a, c, &ci), MCD_OK);
+        /* The clip's own size works; less is refused, by init or by the sample. */
+        CHECK_RESULT(mcd_scratch_init(a, block, ci.scratch_size), MCD_OK);
+        CHECK_RESULT(mcd_sample(a, c, 0.0f, 0, pose, 1024, block), MCD_OK);
+        for (k = 0; k < 2; ++k) {
+            size_t size = ci.scratch_size - short_by[k]; /* scratch_size >= MCD_SCRATCH_MIN_SIZE */
+            mcd_result r = mcd_scratch_init(a, block, size);
+            if (r == MCD_OK) r = mcd_sample(a, c, 0.0f, 0, pose, 1024, block);
+            CHECK_MSG(r == MCD_ERROR_BUFFER_TOO_SMALL, "clip %u: scratch of %lu bytes (need %u) gave %s", c,
+                      (unsigned long)size, ci.scratch_size, mcd_result_string(r));
+        }
+    }
     free(block);
 }
 
@@ -138,7 +158,7 @@ static void check_sample(const mcd_golden* g, size_t count, size_t which) {
         mcd_asset moved;
         if (copy) {
             memcpy(copy, g[which].file.data, g[which].file.size);
-            CHECK_RESULT(mcd_open(copy, g[which].file.size, 0, g[which].resident, g[which].resident ? (size_t)-1 : 0, &moved), MCD_OK);
+            CHECK_RESULT(mcd_open(copy, g[which].file.size, 0, &moved), MCD_OK);
             CHECK_RESULT(mcd_sample(&moved, 0, 0.0f, 0, pose, 1024, scratch), MCD_ERROR_SCRATCH_MISMATCH);
             free(copy);
         }

@@ -145,22 +145,20 @@ typedef struct cntc_asset {
 
 static int load_contacts_golden(cntc_asset* c) {
     char path[1024];
-    uint32_t count, i;
+    uint32_t index = 0;
+    const uint8_t* e;
     snprintf(path, sizeof path, "%s/%s", mcd_test_golden_dir(), CONTACTS_GOLDEN);
     if (!mcd_test_read_file(path, &c->file)) return 0;
-    count = mcd_test_rd_u32(c->file.data + 24);
-    for (i = 0; i < count; ++i) {
-        const uint8_t* e = c->file.data + 32 + 16 * i;
-        if (memcmp(e, "CNTC", 4) == 0) {
-            c->entry = 32 + 16 * i;
-            c->section = mcd_test_rd_u32(e + 8);
-            c->size = mcd_test_rd_u32(e + 12);
-            return 1;
-        }
+    e = mcd_test_section(c->file.data, "CNTC", 0, &index);
+    if (!e) {
+        FAIL("%s has no CNTC section", path);
+        mcd_test_free_file(&c->file);
+        return 0;
     }
-    FAIL("%s has no CNTC section", path);
-    mcd_test_free_file(&c->file);
-    return 0;
+    c->entry = 32 + 16 * index;
+    c->section = mcd_test_rd_u32(e + 8);
+    c->size = mcd_test_rd_u32(e + 12);
+    return 1;
 }
 
 /* Apply `edit` to a copy, fix the checksum, expect `want` from mcd_validate. */
@@ -336,8 +334,8 @@ void test_contacts_flag_semantics(void) {
     memcpy(stripped, c.file.data, c.file.size);
     memcpy(stripped + c.entry, "UNKN", 4);
     mcd_test_fix_crc(stripped, c.file.size);
-    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, NULL, 0, &a), MCD_OK);
-    CHECK_RESULT(mcd_open(stripped, c.file.size, 0, NULL, 0, &plain), MCD_OK);
+    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(stripped, c.file.size, 0, &plain), MCD_OK);
     CHECK(mcd_scratch_size(&a) > mcd_scratch_size(&plain));
     s1 = mcd_test_scratch(&a);
     s2 = mcd_test_scratch(&plain);
@@ -392,7 +390,7 @@ void test_contacts_timing(void) {
         free(p);
         return;
     }
-    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, NULL, 0, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, &a), MCD_OK);
     s = mcd_test_scratch(&a);
     CHECK_RESULT(mcd_get_clip_info(&a, 0, &info), MCD_OK);
     for (pass = 0; pass < 2 && s; ++pass) {
@@ -429,7 +427,7 @@ void test_contacts_order_independence(void) {
         free(q);
         return;
     }
-    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, NULL, 0, &a), MCD_OK);
+    CHECK_RESULT(mcd_open(c.file.data, c.file.size, 0, &a), MCD_OK);
     CHECK_RESULT(mcd_get_clip_info(&a, 0, &info), MCD_OK);
     warm = mcd_test_scratch(&a);
     cold = mcd_test_scratch(&a);

@@ -141,7 +141,7 @@ void test_fkwavelet_damage_sweep(void) {
         CHECK(open_and_sample(t, len) != MCD_OK);
         free(t);
     }
-    for (pos = 24; pos < size; ++pos) {
+    for (pos = 24; pos < size; pos = mcd_test_sweep_next(pos, 7)) {
         size_t j;
         for (j = 0; j < 2u; ++j) {
             mcd_result r;

@@ -21,15 +21,6 @@ static float position_time(uint32_t s, float rate) {
     return 0.25f * (float)s / rate;
 }
 
-/* The asset samples in place: no resident memory. */
-static mcd_result open_fixture(const uint8_t* data, size_t size, mcd_asset* asset) {
-    size_t need = 1;
-    mcd_result r = mcd_resident_size(data, size, 0, &need);
-    if (r != MCD_OK) return r;
-    if (need != 0) return MCD_ERROR_MALFORMED;
-    return mcd_open(data, size, 0, NULL, 0, asset);
-}
-
 void test_ikpredict_fixture(void) {
     mcd_asset asset;
     mcd_clip_info info;
@@ -38,7 +29,7 @@ void test_ikpredict_fixture(void) {
     uint32_t f;
     double worst = 0.0;
     CHECK_RESULT(mcd_validate(k_ikp_fixture, sizeof k_ikp_fixture, 0), MCD_OK);
-    CHECK_RESULT(open_fixture(k_ikp_fixture, sizeof k_ikp_fixture, &asset), MCD_OK);
+    CHECK_RESULT(mcd_open(k_ikp_fixture, sizeof k_ikp_fixture, 0, &asset), MCD_OK);
     CHECK_RESULT(mcd_get_clip_info(&asset, 0, &info), MCD_OK);
     CHECK(info.codec == MCD_CODEC_IK_PREDICT);
     CHECK(info.frame_count == FRAMES && info.node_count == NODES);
@@ -47,7 +38,7 @@ void test_ikpredict_fixture(void) {
         float time = (float)k_ikp_fixture_frames[f] / info.frame_rate;
         double gap;
         CHECK_RESULT(mcd_sample(&asset, 0, time, 0, pose, NODES, scratch), MCD_OK);
-        gap = mcd_test_pose_gap(pose, k_ikp_fixture_poses + (size_t)f * NODES * 7u, NODES);
+        gap = mcd_test_pose_gap_trs(pose, k_ikp_fixture_poses + (size_t)f * NODES * 10u, NODES);
         if (gap > worst) worst = gap;
     }
     /* Bit for bit when this binary rounds as the Python binding's build does (the pytest
@@ -64,7 +55,7 @@ void test_ikpredict_access_orders(void) {
     mcd_clip_info info;
     void* scratch;
     uint32_t s, n, seed = 777u, mismatches = 0;
-    CHECK_RESULT(open_fixture(k_ikp_fixture, sizeof k_ikp_fixture, &asset), MCD_OK);
+    CHECK_RESULT(mcd_open(k_ikp_fixture, sizeof k_ikp_fixture, 0, &asset), MCD_OK);
     CHECK_RESULT(mcd_get_clip_info(&asset, 0, &info), MCD_OK);
     scratch = mcd_test_scratch(&asset);
     for (s = 0; s < STEPS; ++s)
@@ -82,12 +73,12 @@ void test_ikpredict_access_orders(void) {
     mcd_test_free_scratch(scratch);
 }
 
-/* Open a copy; on success sample every half frame and check the poses are finite. A corrupt
- * entropy stream may only show when its block is decoded: then mcd_sample fails cleanly. */
+/* Open a copy; on success sample every half frame: it cannot fail (mcd_validate checked every
+ * entropy stream) and the poses are finite. */
 static mcd_result open_and_sample(const uint8_t* data, size_t size) {
     mcd_asset asset;
     mcd_transform pose[NODES];
-    mcd_result r = open_fixture(data, size, &asset);
+    mcd_result r = mcd_open(data, size, 0, &asset);
     if (r == MCD_OK) {
         void* scratch = mcd_test_scratch(&asset);
         mcd_clip_info info;
@@ -95,7 +86,7 @@ static mcd_result open_and_sample(const uint8_t* data, size_t size) {
         if (mcd_get_clip_info(&asset, 0, &info) == MCD_OK && info.node_count <= NODES) {
             for (f = 0; f < 2u * info.frame_count; ++f) {
                 mcd_result s = mcd_sample(&asset, 0, 0.5f * (float)f / info.frame_rate, MCD_SAMPLE_WORLD, pose, NODES, scratch);
-                CHECK(s == MCD_OK || s == MCD_ERROR_MALFORMED);
+                CHECK_RESULT(s, MCD_OK);
                 if (s == MCD_OK) CHECK(mcd_test_pose_finite(pose, info.node_count));
             }
         }
@@ -117,7 +108,7 @@ void test_ikpredict_damage_sweep(void) {
         CHECK(open_and_sample(t, len) != MCD_OK);
         free(t);
     }
-    for (pos = 24; pos < size; ++pos) {
+    for (pos = 24; pos < size; pos = mcd_test_sweep_next(pos, 17)) {
         size_t j;
         for (j = 0; j < 2u; ++j) {
             memcpy(copy, k_ikp_fixture, size);
@@ -128,7 +119,8 @@ void test_ikpredict_damage_sweep(void) {
         }
         if (mcd_test_failures() > 20) break;
     }
-    /* The streams are most of the payload and are only checked when decoded. */
-    CHECK(rejected > total / 4u);
+    /* mcd_validate decodes every entropy stream, so most changes break a rule (68 % measured
+     * on this fixture); the rest sample finite poses. */
+    CHECK_MSG(rejected > total / 2u, "only %u of %u damaged copies rejected", rejected, total);
     free(copy);
 }

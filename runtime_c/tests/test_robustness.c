@@ -21,7 +21,6 @@ void test_truncation_sweep(void) {
             uint8_t* prefix = (uint8_t*)malloc(len ? len : 1u);
             mcd_result r0, r1;
             mcd_asset a;
-            size_t resident;
             if (!prefix) break;
             memcpy(prefix, f->data, len);
             r0 = mcd_validate(prefix, len, 0);
@@ -31,8 +30,11 @@ void test_truncation_sweep(void) {
             if (len >= 8)
                 CHECK_MSG(r0 == MCD_ERROR_TRUNCATED && r1 == MCD_ERROR_TRUNCATED, "%s: prefix of %lu bytes gave %d/%d, not TRUNCATED",
                           f->path, (unsigned long)len, (int)r0, (int)r1);
-            CHECK(mcd_open(prefix, len, SKIP, NULL, 0, &a) == r1);
-            CHECK(mcd_resident_size(prefix, len, SKIP, &resident) == r1);
+            CHECK(mcd_open(prefix, len, 0, &a) == r0);
+            CHECK(mcd_open(prefix, len, SKIP, &a) == r1);
+            /* Even a prevalidated open reads the header's size first: a short buffer (a file
+             * still loading) is TRUNCATED, never read past. */
+            CHECK(mcd_open(prefix, len, MCD_OPEN_PREVALIDATED, &a) == r1);
             free(prefix);
         }
         if (longer) {
@@ -40,6 +42,10 @@ void test_truncation_sweep(void) {
             longer[f->size] = 0;
             CHECK_RESULT(mcd_validate(longer, f->size + 1u, 0), MCD_ERROR_TRAILING_DATA);
             CHECK_RESULT(mcd_validate(longer, f->size + 1u, SKIP), MCD_ERROR_TRAILING_DATA);
+            {
+                mcd_asset a;
+                CHECK_RESULT(mcd_open(longer, f->size + 1u, MCD_OPEN_PREVALIDATED, &a), MCD_ERROR_TRAILING_DATA);
+            }
             free(longer);
         }
     }
@@ -57,7 +63,7 @@ void test_corruption_sweep(void) {
         unsigned long accepted = 0;
         if (!copy) break;
         memcpy(copy, f->data, f->size);
-        for (pos = 0; pos < f->size && mcd_test_failures() < 100; ++pos) {
+        for (pos = 0; pos < f->size && mcd_test_failures() < 100; pos = mcd_test_sweep_next(pos, 211)) {
             for (m = 0; m < 4; ++m) {
                 mcd_result r;
                 int e;
@@ -130,6 +136,7 @@ void test_header_errors(void) {
         check_edit(f, 8, major + 1u, 2, 0, MCD_ERROR_VERSION_TOO_NEW, "major + 1");
         check_edit(f, 8, 0xFFFF, 2, 0, MCD_ERROR_VERSION_TOO_NEW, "major 65535");
         check_edit(f, 8, 0, 2, 0, MCD_ERROR_VERSION_TOO_OLD, "major 0");
+        check_edit(f, 8, major - 1u, 2, 0, MCD_ERROR_VERSION_TOO_OLD, "major - 1 (format 1: resident memory)");
         /* Any minor of the runtime's major is read (compatibility policy); outside the CRC. */
         check_edit(f, 10, 7, 2, 0, MCD_OK, "minor 7");
         check_edit(f, 20, mcd_test_rd_u32(f->data + 20) ^ 1u, 4, 0, MCD_ERROR_CHECKSUM, "crc ^ 1");
@@ -151,19 +158,14 @@ void test_header_errors(void) {
         /* The first section table entry: offset and kind version. */
         check_edit(f, 32 + 8, mcd_test_rd_u32(f->data + 40) + 16u, 4, 1, MCD_ERROR_MALFORMED, "section 0 offset + 16");
         check_edit(f, 32 + 12, 0xFFFFFFF0u, 4, 1, MCD_ERROR_MALFORMED, "section 0 size huge");
-        check_edit(f, 32 + 4, 2, 4, 1, MCD_ERROR_UNSUPPORTED, "section 0 version 2");
+        /* Section 0 is a SKEL (version 2): version 1 (format 1's 32-byte nodes) and 3 are unknown. */
+        CHECK(memcmp(f->data + 32, "SKEL", 4) == 0 && mcd_test_rd_u32(f->data + 36) == 2);
+        check_edit(f, 32 + 4, 1, 4, 1, MCD_ERROR_UNSUPPORTED, "SKEL version 1");
+        check_edit(f, 32 + 4, 3, 4, 1, MCD_ERROR_UNSUPPORTED, "SKEL version 3");
         /* Without the fix the checksum is what catches a changed section count. */
         check_edit(f, 24, count + 1u, 4, 0, MCD_ERROR_CHECKSUM, "section_count + 1, stale crc");
     }
     mcd_test_free_golden(g, n);
-}
-
-/* Offset of the first section of `kind` (docs/FORMAT.md section table), or 0. */
-static uint32_t find_section(const uint8_t* d, const char kind[4]) {
-    uint32_t i, count = mcd_test_rd_u32(d + 24);
-    for (i = 0; i < count; ++i)
-        if (memcmp(d + 32 + 16 * i, kind, 4) == 0) return mcd_test_rd_u32(d + 32 + 16 * i + 8);
-    return 0;
 }
 
 static uint32_t float_bits(float f) {
@@ -172,23 +174,28 @@ static uint32_t float_bits(float f) {
     return u;
 }
 
-/* The clip directory's rules (docs/FORMAT.md "CLIP"), each broken alone in clip 0's record with
- * the checksum recomputed, so each answer comes from the rule itself. */
+/* The clip directory's rules (docs/FORMAT.md "CLIP", version 2), each broken alone in clip 0's
+ * record with the checksum recomputed, so each answer comes from the rule itself. */
 void test_clip_directory_errors(void) {
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i;
     for (i = 0; i < n; ++i) {
         const mcd_test_file* f = &g[i].file;
-        uint32_t clip = find_section(f->data, "CLIP"), rec = clip + 8u;
+        uint32_t index = 0;
+        const uint8_t* entry = mcd_test_section(f->data, "CLIP", 0, &index);
+        uint32_t clip = entry ? mcd_test_rd_u32(entry + 8) : 0, rec = clip + 8u;
         float rate, duration;
-        uint32_t frames;
+        uint32_t frames, need;
         if (clip == 0 || rec + 48u > f->size) {
             FAIL("%s: no clip directory", f->path);
             continue;
         }
         frames = mcd_test_rd_u32(f->data + rec + 24);
-        memcpy(&rate, f->data + rec + 28, 4);
-        memcpy(&duration, f->data + rec + 32, 4);
+        rate = mcd_test_rd_f32(f->data + rec + 28);
+        duration = mcd_test_rd_f32(f->data + rec + 32);
+        need = mcd_test_rd_u32(f->data + rec + 40);
+        check_edit(f, 32 + 16 * index + 4, 1, 4, 1, MCD_ERROR_UNSUPPORTED, "CLIP version 1 (40-byte records)");
+        check_edit(f, 32 + 16 * index + 4, 3, 4, 1, MCD_ERROR_UNSUPPORTED, "CLIP version 3");
         check_edit(f, clip, 0, 4, 1, MCD_ERROR_MALFORMED, "clip_count 0");
         check_edit(f, clip + 4, 0, 4, 1, MCD_ERROR_MALFORMED, "string_block_offset 0");
         check_edit(f, rec, 0xFFFFu, 4, 1, MCD_ERROR_MALFORMED, "name_offset past the string block");
@@ -211,6 +218,11 @@ void test_clip_directory_errors(void) {
         check_edit(f, rec + 32, 0x7FC00000u, 4, 1, MCD_ERROR_MALFORMED, "duration NaN");
         check_edit(f, rec + 36, 1, 4, 1, MCD_ERROR_MALFORMED, "clip flags 1");
         check_edit(f, rec + 44, 1, 4, 1, MCD_ERROR_MALFORMED, "clip reserved word 1");
+        /* The scratch the record states is the codec's own figure, a multiple of 16. */
+        check_edit(f, rec + 40, need + 16u, 4, 1, MCD_ERROR_MALFORMED, "scratch need + 16");
+        if (need >= 16u) check_edit(f, rec + 40, need - 16u, 4, 1, MCD_ERROR_MALFORMED, "scratch need - 16");
+        check_edit(f, rec + 40, need + 1u, 4, 1, MCD_ERROR_MALFORMED, "scratch need not a multiple of 16");
+        check_edit(f, rec + 40, 0xFFFFFFF0u, 4, 1, MCD_ERROR_MALFORMED, "scratch need 4 GB");
         /* Within the 1e-4 relative tolerance the duration is accepted. */
         check_edit(f, rec + 32, float_bits(duration * (1.0f + 2e-5f)), 4, 1, MCD_OK, "duration 2e-5 off");
     }

@@ -23,7 +23,7 @@ static int same_pose(const mcd_transform* x, const mcd_transform* y, uint32_t n)
 }
 
 static float component(const mcd_transform* t, uint32_t k) {
-    return k < 4 ? t->rotation[k] : t->translation[k - 4];
+    return k < 4 ? t->rotation[k] : k < 7 ? t->translation[k - 4] : t->scale[k - 7];
 }
 
 /* Largest |x - y| over every float, relative to max(1, |y|). */
@@ -31,7 +31,7 @@ static double pose_distance(const mcd_transform* x, const mcd_transform* y, uint
     double worst = 0.0;
     uint32_t i, k;
     for (i = 0; i < n; ++i) {
-        for (k = 0; k < 7; ++k) {
+        for (k = 0; k < 10; ++k) {
             double vx = component(&x[i], k), vy = component(&y[i], k);
             double d = fabs(vx - vy) / (fabs(vy) > 1.0 ? fabs(vy) : 1.0);
             if (d > worst) worst = d;
@@ -262,17 +262,24 @@ static int make_jobs(const mcd_asset* a, job_list* L) {
     return L->count > 0;
 }
 
-/* Runs `order` (job indices) with one scratch; fresh != 0 re-initialises it whenever the clip
- * changes, as a caller that keeps one scratch per clip would. */
+/* How a caller keeps its scratch memory while it runs the jobs. */
+enum scratch_use {
+    ONE_SCRATCH,       /* one scratch for every clip, never re-initialised */
+    REINIT_ON_SWITCH,  /* one scratch, initialised again whenever the clip changes */
+    SCRATCH_PER_CLIP   /* one scratch per clip, each of exactly the size that clip states */
+};
+
+/* Runs `order` (job indices); `scratch` holds one scratch, or one per clip (SCRATCH_PER_CLIP). */
 static int run_jobs(const mcd_asset* a, const job_list* L, const uint32_t* order, uint32_t flags,
-                    mcd_transform* out, void* scratch, int fresh) {
+                    mcd_transform* out, void** scratch, enum scratch_use use) {
     size_t k;
     uint32_t clip = UINT32_MAX;
     for (k = 0; k < L->count; ++k) {
         const job* j = &L->jobs[order[k]];
-        if (fresh && j->clip != clip && mcd_scratch_init(a, scratch, mcd_scratch_size(a)) != MCD_OK) return 0;
+        void* s = scratch[use == SCRATCH_PER_CLIP ? j->clip : 0];
+        if (use == REINIT_ON_SWITCH && j->clip != clip && mcd_scratch_init(a, s, mcd_scratch_size(a)) != MCD_OK) return 0;
         clip = j->clip;
-        if (mcd_sample(a, j->clip, j->time, flags, out + j->offset, j->nodes, scratch) != MCD_OK) return 0;
+        if (mcd_sample(a, j->clip, j->time, flags, out + j->offset, j->nodes, s) != MCD_OK) return 0;
     }
     return 1;
 }
@@ -287,39 +294,49 @@ static void make_order(uint32_t* order, size_t count, uint32_t kind) {
 /* Forwards and backwards keep each clip's samples together; a shuffle interleaves clips. The
  * reference samples each job with a scratch initialised just before it. */
 void test_access_order_independence(void) {
-    static const uint32_t flag_sets[3] = {0, MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP, MCD_SAMPLE_NEAREST};
+    static const uint32_t flag_sets[4] = {0, MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP, MCD_SAMPLE_NEAREST,
+                                          MCD_SAMPLE_CONTACTS | MCD_SAMPLE_WORLD};
+    static const char* const uses[3] = {"one scratch", "scratch re-initialised per clip", "scratch per clip"};
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i, k;
     for (i = 0; i < n; ++i) {
         const mcd_asset* a = &g[i].asset;
+        uint32_t c, clips = mcd_clip_count(a), kind;
         job_list L;
         void* scratch = mcd_test_scratch(a);
         void* shared = mcd_test_scratch(a); /* one scratch reused across clips and orders */
+        void** own = (void**)calloc(clips, sizeof *own);
         mcd_transform *ref = NULL, *got = NULL;
         uint32_t* order = NULL;
         size_t f;
-        uint32_t kind;
-        if (scratch && shared && make_jobs(a, &L)) {
+        int setup;
+        memset(&L, 0, sizeof L);
+        setup = scratch && shared && own && make_jobs(a, &L);
+        for (c = 0; setup && c < clips; ++c) {
+            mcd_clip_info ci;
+            setup = mcd_get_clip_info(a, c, &ci) == MCD_OK && (own[c] = mcd_test_scratch_sized(a, ci.scratch_size)) != NULL;
+        }
+        if (setup) {
             ref = (mcd_transform*)malloc(L.floats_total * sizeof *ref);
             got = (mcd_transform*)malloc(L.floats_total * sizeof *got);
             order = (uint32_t*)malloc(L.count * sizeof *order);
         }
-        for (f = 0; ref && got && order && f < 3; ++f) {
+        for (f = 0; ref && got && order && f < 4; ++f) {
             for (k = 0; k < L.count; ++k)
                 if (!sample_cold(a, L.jobs[k].clip, L.jobs[k].time, flag_sets[f], ref + L.jobs[k].offset, scratch))
                     FAIL("sampling failed");
             for (kind = 0; kind < 4; ++kind) {
-                int fresh;
+                int use;
                 make_order(order, L.count, kind);
-                for (fresh = 0; fresh < 2; ++fresh) {
-                    void* s = fresh ? scratch : shared;
+                for (use = ONE_SCRATCH; use <= SCRATCH_PER_CLIP; ++use) {
+                    void** s = use == SCRATCH_PER_CLIP ? own : use == REINIT_ON_SWITCH ? &scratch : &shared;
                     memset(got, 0xA5, L.floats_total * sizeof *got);
-                    if (!run_jobs(a, &L, order, flag_sets[f], got, s, fresh)) FAIL("sampling failed");
+                    if (!run_jobs(a, &L, order, flag_sets[f], got, s, (enum scratch_use)use)) FAIL("sampling failed");
                     for (k = 0; k < L.count; ++k) {
                         const job* j = &L.jobs[k];
                         if (!same_pose(ref + j->offset, got + j->offset, j->nodes)) {
-                            FAIL("%s clip %u t=%.9g flags %u order %u %s scratch: differs from a cold sample",
-                                 g[i].file.path, j->clip, j->time, flag_sets[f], kind, fresh ? "fresh" : "shared");
+                            FAIL("%s clip %u t=%.9g flags %u order %u, %s: differs from a cold sample", g[i].file.path,
+                                 j->clip, j->time, flag_sets[f], kind, uses[use]);
                             break;
                         }
                     }
@@ -327,13 +344,71 @@ void test_access_order_independence(void) {
                 }
             }
         }
+        if (!setup) FAIL("%s: setup failed", g[i].file.path);
         free(order);
         free(got);
         free(ref);
         free(L.jobs);
+        for (c = 0; own && c < clips; ++c) mcd_test_free_scratch(own[c]);
+        free(own);
         mcd_test_free_scratch(shared);
         mcd_test_free_scratch(scratch);
     }
+    mcd_test_free_golden(g, n);
+}
+
+/* ---------------------------------------------------------------- scratch per clip */
+
+/* A scratch of one clip's stated size plays every clip whose need it covers, giving the bytes
+ * the asset's scratch gives, and refuses the others with MCD_ERROR_BUFFER_TOO_SMALL, after
+ * which it still plays the clips it covers. */
+void test_scratch_per_clip(void) {
+    mcd_golden* g;
+    size_t n = mcd_test_load_golden(&g), i;
+    mcd_transform* p = (mcd_transform*)malloc(MAX_NODES * sizeof *p);
+    mcd_transform* q = (mcd_transform*)malloc(MAX_NODES * sizeof *q);
+    unsigned long refused = 0;
+    for (i = 0; p && q && i < n; ++i) {
+        const mcd_asset* a = &g[i].asset;
+        uint32_t c, d, clips = mcd_clip_count(a);
+        void* full = mcd_test_scratch(a);
+        for (c = 0; full && c < clips; ++c) {
+            mcd_clip_info ci;
+            void* small;
+            CHECK_RESULT(mcd_get_clip_info(a, c, &ci), MCD_OK);
+            small = mcd_test_scratch_sized(a, ci.scratch_size);
+            for (d = 0; small && d < clips; ++d) {
+                mcd_clip_info di;
+                uint32_t k;
+                CHECK_RESULT(mcd_get_clip_info(a, d, &di), MCD_OK);
+                for (k = 0; k < 2u * di.frame_count - 1u; k += 7u) {
+                    float t = (float)(0.5 * k / di.frame_rate);
+                    mcd_result r = mcd_sample(a, d, t, MCD_SAMPLE_WORLD, p, MAX_NODES, small);
+                    if (di.scratch_size > ci.scratch_size) {
+                        CHECK_MSG(r == MCD_ERROR_BUFFER_TOO_SMALL, "%s: clip %u (needs %u) on the scratch of clip %u (%u): %s",
+                                  g[i].file.path, d, di.scratch_size, c, ci.scratch_size, mcd_result_string(r));
+                        refused++;
+                        /* Refused, the scratch keeps serving the clip it was sized for. */
+                        r = mcd_sample(a, c, t, MCD_SAMPLE_WORLD, p, MAX_NODES, small);
+                        CHECK_RESULT(r, MCD_OK);
+                        CHECK(sample_cold(a, c, t, MCD_SAMPLE_WORLD, q, full) && same_pose(p, q, ci.node_count));
+                        continue;
+                    }
+                    CHECK_MSG(r == MCD_OK, "%s: clip %u (needs %u) on the scratch of clip %u (%u): %s", g[i].file.path, d,
+                              di.scratch_size, c, ci.scratch_size, mcd_result_string(r));
+                    CHECK(sample_cold(a, d, t, MCD_SAMPLE_WORLD, q, full));
+                    CHECK_MSG(same_pose(p, q, di.node_count), "%s clip %u t=%.9g: the scratch of clip %u gives other bytes",
+                              g[i].file.path, d, t, c);
+                }
+            }
+            mcd_test_free_scratch(small);
+        }
+        mcd_test_free_scratch(full);
+    }
+    /* The goldens include libraries whose clips need different amounts. */
+    CHECK_MSG(refused > 0, "no golden clip needs more scratch than another: the refusal was not tested");
+    free(p);
+    free(q);
     mcd_test_free_golden(g, n);
 }
 
@@ -352,7 +427,7 @@ typedef struct thread_arg {
 
 static void* thread_main(void* p) {
     thread_arg* t = (thread_arg*)p;
-    t->ok = run_jobs(t->a, t->L, t->order, t->flags, t->out, t->scratch, 0);
+    t->ok = run_jobs(t->a, t->L, t->order, t->flags, t->out, &t->scratch, ONE_SCRATCH);
     return NULL;
 }
 
@@ -392,7 +467,7 @@ void test_threads_match_serial(void) {
         for (flags = 0; ok && flags <= MCD_SAMPLE_WORLD; ++flags) {
             int started = 0;
             make_order(serial_order, L.count, 0);
-            CHECK(run_jobs(a, &L, serial_order, flags, serial, scratch, 1));
+            CHECK(run_jobs(a, &L, serial_order, flags, serial, &scratch, REINIT_ON_SWITCH));
             for (t = 0; t < THREADS; ++t) {
                 args[t].flags = flags;
                 if (pthread_create(&threads[t], NULL, thread_main, &args[t]) != 0) break;

@@ -32,10 +32,11 @@ import numpy as np
 from ..entropy import entropy_encode
 from ..ikfk.angles import bone_axes, shortest_arc
 from ..ikfk.chains import motion_chains
+from ..container import skeleton_section
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton
 from ..rotations import quat_conjugate, quat_multiply, quat_rotate
-from ..runtime import Result, RuntimeResultError
+from ..runtime import TRANSFORM_FLOATS, Result, RuntimeResultError
 from ..tolerance import ClipCheck, Tolerance, ToleranceNotMet, within
 from ..units import skeleton_height
 from . import ClipResult
@@ -193,11 +194,14 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
     f, n = motion.frame_count, sk.node_count
     rot, tr = motion.rotations, motion.translations
     rot_mode = np.zeros(n, dtype=np.int64)
+    animated = motion.animated()
     for i in range(n):
-        if not sk.rotation_order(i):
-            continue
+        if not animated[i, 0]:
+            continue  # mode 0: the rest rotation (identity for BVH) on every frame
         if np.all(rot[:, i] == rot[0, i]):
-            rot_mode[i] = ROT_IDENTITY if np.array_equal(rot[0, i], [0.0, 0.0, 0.0, 1.0]) else ROT_CONSTANT
+            rest = sk.rest_rotations[i]
+            at_rest = np.array_equal(rot[0, i], rest) or np.array_equal(rot[0, i], -rest)
+            rot_mode[i] = ROT_IDENTITY if at_rest else ROT_CONSTANT
         else:
             rot_mode[i] = ROT_CODED
     trans_mode = np.where(np.all(tr == sk.offsets[None], axis=(0, 2)), TRANS_REST, TRANS_CODED)
@@ -213,7 +217,7 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
         if direct:
             primary[i] = direct[0]
 
-    world_rot, world_pos = forward_kinematics(sk, rot, tr)
+    world_rot, world_pos = forward_kinematics(sk, rot, tr, motion.scales)
     joints = np.flatnonzero(coded)
     w = world_rot[:, joints]
     d = quat_rotate(w, np.broadcast_to(u[joints], w.shape[:-1] + (3,)))
@@ -285,7 +289,7 @@ def _interpolation_ok(motion: Motion, world_pos: np.ndarray, tol_units: np.ndarr
         t = r / gap
         q = a_rot + (b_rot - a_rot) * t
         q /= np.linalg.norm(q, axis=-1, keepdims=True)
-        _, pos = forward_kinematics(sk, q, a_tr + (b_tr - a_tr) * t)
+        _, pos = forward_kinematics(sk, q, a_tr + (b_tr - a_tr) * t, sk.rest_scales[None])
         err = np.linalg.norm(pos - world_pos[starts + r], axis=-1)
         ok &= np.all(err <= tol_units[None, :], axis=1)
     return ok
@@ -331,13 +335,9 @@ def payload_frames(payload: bytes) -> np.ndarray:
 
 
 def skeleton_records(sk: Skeleton) -> bytes:
-    """The SKEL section's node records as the runtime reads parents and rest offsets
-    (16-byte section header, 32 bytes per node); names and channels are not needed here."""
-    out = bytearray(16 + 32 * sk.node_count)
-    struct.pack_into("<I", out, 0, sk.node_count)
-    for i in range(sk.node_count):
-        struct.pack_into("<i4x3f", out, 16 + 32 * i, int(sk.parents[i]), *sk.offsets[i].astype(np.float32))
-    return bytes(out)
+    """The skeleton as the runtime reads it: a complete ``SKEL`` section (version 2: parents,
+    rest translation, rotation and scale per node; the units are not read here)."""
+    return skeleton_section(sk, 1.0)
 
 
 def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: float,
@@ -372,7 +372,8 @@ def head_bytes(plan: _Plan, frames: int, settings: IkPredictSettings, scale: flo
 def closed_loop(head: bytes, skeleton: bytes, targets: np.ndarray, effectors: np.ndarray,
                 poses: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
     """Run the runtime's closed loop (``mcd_ikp_closed_loop``): the codes (F, 3C + 3J + 3T)
-    and, with ``poses``, the local pose (F, N, 7) float32 the runtime samples at each frame."""
+    and, with ``poses``, the local pose (F, N, 10) float32 the runtime samples at each frame
+    (``mcd_transform``: rotation, translation, scale)."""
     from mocodec_runtime._native import ffi, lib
 
     frames = targets.shape[0]
@@ -386,7 +387,7 @@ def closed_loop(head: bytes, skeleton: bytes, targets: np.ndarray, effectors: np
     t = np.ascontiguousarray(targets, dtype=np.float64)
     e = np.ascontiguousarray(effectors, dtype=np.float64)
     codes = np.zeros((frames, effectors.shape[1] + targets.shape[1]), dtype=np.int32)
-    out = np.zeros((frames, nodes, 7), dtype=np.float32) if poses else None
+    out = np.zeros((frames, nodes, TRANSFORM_FLOATS), dtype=np.float32) if poses else None
     code = lib.mcd_ikp_closed_loop(
         head, len(head), skeleton, len(skeleton), frames, ffi.cast("double*", ffi.from_buffer(t)),
         ffi.cast("double*", ffi.from_buffer(e)), ffi.cast("int32_t*", ffi.from_buffer(codes)),
@@ -545,7 +546,7 @@ def payload_codes(payload: bytes) -> np.ndarray:
 def reconstruction(payload: bytes, motion: Motion, cm_per_unit: float,
                    settings: IkPredictSettings) -> np.ndarray:
     """The encoder's own reconstruction of ``payload``: the closed loop rerun with the
-    payload's head on the clip's signals, as local poses (G, N, 7) float32 at every coded
+    payload's head on the clip's signals, as local poses (G, N, 10) float32 at every coded
     frame (:func:`payload_frames`).
     Raises ValueError when the rerun does not give the payload's codes back."""
     plan = analyse(motion, cm_per_unit, settings)

@@ -4,10 +4,9 @@
 
 It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
 top-down fitting, per-track budgets, repair through the C runtime), and differs in storage
-(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are a bit mask
-over key cells; key values are grouped residuals from a prediction at per-group widths, with
-outliers whole, so a random access decodes a few records per track and sequential playback
-one record per key interval.
+(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are bits of a
+cell bitmap; key values are residuals from a chord between group anchors at per-group widths,
+with outliers whole, so any key is a few direct reads, at random as in sequence.
 
 The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
 is codec ``rma-pca`` (``--pca-variance``, :mod:`.rma_pca`); this one does not use it because
@@ -28,7 +27,7 @@ from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
 from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
-from .rma_bitstream import DEFAULT_GROUP_SHIFT, CurveTrack, payload
+from .rma_bitstream import GROUP_SHIFTS, CurveTrack, payload
 
 SECTION_HEADER = 16
 
@@ -41,17 +40,18 @@ class RMASettings(KeyframeSettings):
     Parameters
     ----------
     key_grid : int or None, default None
-        Key cells of this many frames, keys kept to one a cell where they can (a key time then
-        costs about a bit of the cell mask; a second key in a cell a list entry); 1 ... 8.
-        None: 4 when every node's tolerance is at least 0.25 cm, else 1 (dense keys).
-    group_shift : int, default 4
-        Key values come in groups of ``2**group_shift`` keys (docs/FORMAT.md, RMAL): a random
-        access decodes at most one group's records per track, and each group costs an entry
-        (offset, widths, its first key whole). Larger groups: fewer bytes, slower random access.
+        Keys only on the first frames of cells of this many frames (1, 2, 4 or 8), where a key
+        time costs a bit of the track's cell bitmap; a track that needs a key elsewhere goes on
+        in cells of half the size. None: 4 when every node's tolerance is at least 0.25 cm,
+        else 1 (dense keys).
+    group_shifts : tuple of int, default (3, 4, 5)
+        Each track's keys come in groups of ``2**s`` keys, s the one of these that takes the
+        fewest bytes (docs/FORMAT.md, RMAL): a group costs a row (offset, widths, its first
+        key whole), and its other keys are residuals from the chord between two rows' keys.
     """
 
     key_grid: int | None = None
-    group_shift: int = DEFAULT_GROUP_SHIFT
+    group_shifts: tuple[int, ...] = GROUP_SHIFTS
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -61,11 +61,13 @@ class RMASettings(KeyframeSettings):
                 tightest = min(tightest, self.tolerance.effector_tolerance_cm)
             self.key_grid = 4 if tightest >= 0.25 else 1
         self.key_grid = int(self.key_grid)
-        if not 1 <= self.key_grid <= 8:
-            raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
-        self.group_shift = int(self.group_shift)
-        if not 1 <= self.group_shift <= 6:
-            raise ValueError(f"group_shift must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shift}")
+        if self.key_grid not in (1, 2, 4, 8):
+            raise ValueError(f"key_grid must be 1, 2, 4 or 8, got {self.key_grid}")
+        if isinstance(self.group_shifts, (int, str)):
+            self.group_shifts = (int(self.group_shifts),)
+        self.group_shifts = tuple(int(g) for g in self.group_shifts)
+        if not self.group_shifts or any(not 1 <= g <= 6 for g in self.group_shifts):
+            raise ValueError(f"group_shifts must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shifts}")
 
 
 def section_prefix(clip_count: int) -> bytes:
@@ -84,11 +86,11 @@ def curve_track(t: Track) -> CurveTrack:
                       ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=t.split)
 
 
-def serialize(motion: Motion, tracks: list[Track], group_shift: int = DEFAULT_GROUP_SHIFT) -> bytes:
+def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
     """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
     rows, constants, animated = node_modes(motion, tracks)
-    modes = [(rm, tm, 0) for rm, tm, _, _ in rows]
-    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shift)
+    modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
+    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts)
 
 
 JUMP_CM = 20.0  # a point moving this far in one frame is the capture jumping, not motion
@@ -99,7 +101,7 @@ def frame0_jumps(motion: Motion, cm_per_unit: float) -> bool:
     files start with a T-pose the converter added): the curves then detach frame 0."""
     if motion.frame_count < 3:
         return False
-    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2])
+    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2], motion.scales[:2])
     return bool(np.max(np.linalg.norm(pos[1] - pos[0], axis=-1)) * cm_per_unit > JUMP_CM)
 
 
@@ -117,7 +119,7 @@ class RMAFitter(KeyframeFitter):
         return np.unique([0, 1, self.frames - 1] if self.split else [0, self.frames - 1])
 
     def payload(self, tracks: list[Track]) -> bytes:
-        return serialize(self.motion, tracks, self.settings.group_shift)
+        return serialize(self.motion, tracks, self.settings.group_shifts)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,

@@ -16,7 +16,7 @@ from ..curves import catmull_rom
 from ..motion import Skeleton
 from .spline_reference import track_rotation
 
-_DESC_SIZE = {1: 32, 2: 44, 3: 24, 4: 24}
+_DESC_SIZE = {1: 28, 2: 40, 3: 20, 4: 20}
 _DIMS = {1: 3, 2: 4, 3: 3, 4: 3}
 
 
@@ -24,10 +24,15 @@ def _signed(u: int, n: int) -> int:
     return u - (1 << n) if u >> (n - 1) else u
 
 
+def _bits_for(n: int) -> int:
+    return max(1, int(n).bit_length())
+
+
 def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     """The payload's header fields and, per track, its kind, key frames (K,), lattice
-    integers (K, d), steps (d,), reference and axis."""
-    size, frames, nodes, ntracks, nconst, gshift = struct.unpack_from("<IIIIIB", payload)
+    integers (K, d), steps (d,), reference and axis, and where its parts start (``parts``:
+    byte offsets of the bitmap, rank table, group table and data area)."""
+    size, frames, nodes, ntracks, nconst = struct.unpack_from("<IIIII", payload)
     pos = 32
     modes = list(payload[pos:pos + nodes])
     pos += (nodes + 3) // 4 * 4
@@ -35,78 +40,85 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     pos += 4 * nconst
     descs = []
     for _ in range(ntracks):
-        kind, gs, predictor, offset_bits, K, data_bytes, extras, step = struct.unpack_from("<BBBBIIIf", payload, pos)
+        kind, flags, offset_bits, in_cell_bits, K, data_bytes, step = struct.unpack_from("<BBBBIIf", payload, pos)
         d = _DIMS[kind]
-        abits = list(payload[pos + 20:pos + 20 + d])
+        abits = list(payload[pos + 16:pos + 16 + d])
         steps = np.full(d, step, dtype=np.float32)
         ref = axis = None
         if kind in (1, 2):
-            ref = R.quat_from_mrp(np.frombuffer(payload, "<i2", 3, pos + 24).astype(np.float64) / 32767.0)
+            ref = R.quat_from_mrp(np.frombuffer(payload, "<i2", 3, pos + 20).astype(np.float64) / 32767.0)
         if kind == 2:
-            a = np.frombuffer(payload, "<i2", 3, pos + 32).astype(np.float64)
+            a = np.frombuffer(payload, "<i2", 3, pos + 28).astype(np.float64)
             axis = a / np.linalg.norm(a)
-            steps[0] = struct.unpack_from("<f", payload, pos + 40)[0]
-        descs.append(dict(kind=kind, d=d, gs=gs & 3, split=bool(gs & 4), extras=extras, predictor=predictor,
-                          offset_bits=offset_bits, K=K,
-                          data_bytes=data_bytes, steps=steps, abits=abits, ref=ref, axis=axis))
+            steps[0] = struct.unpack_from("<f", payload, pos + 36)[0]
+        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), cell_shift=(flags >> 1) & 3,
+                          group_shift=(flags >> 3) & 7, offset_bits=offset_bits, in_cell_bits=in_cell_bits, K=K,
+                          data_bytes=data_bytes,
+                          steps=steps, abits=abits, ref=ref, axis=axis))
         pos += _DESC_SIZE[kind]
     pos = (pos + 3) // 4 * 4
-    G = 1 << gshift
     for t in descs:
-        cells = ((frames - 2) >> t["gs"]) + 1 if frames > 1 else 0
-        words = (cells + 63) // 64
-        mask_at = pos
-        extra_at = mask_at + 8 * words + 4 * ((words + 3) // 4)
-        ebits = max(1, (cells - 1).bit_length())
-        table_at = extra_at + 4 * ((t["extras"] * ebits + 31) // 32)
-        groups = (t["K"] - 1) // G + 1
-        d = t["d"]
-        entry = t["offset_bits"] + 5 * d + t["gs"] + sum(t["abits"])
-        data_at = table_at + 4 * ((groups * entry + 31) // 32)
-        pos = data_at + t["data_bytes"]
-        table = payload[table_at:data_at]
-        data = payload[data_at:pos] + bytes(8)
-        set_cells = [c for c in range(cells) if payload[mask_at + c // 8] >> (c % 8) & 1]
-        extra = [read_bits(payload[extra_at:table_at] + bytes(8), k * ebits, ebits) for k in range(t["extras"])]
-        set_cells = sorted(set_cells + extra)  # a cell holding n keys appears n times
-        q = np.zeros((t["K"], d), dtype=np.int64)
-        offs = np.zeros(t["K"], dtype=np.int64)
-        for g in range(groups):
-            bit = g * entry
-            start = read_bits(table, bit, t["offset_bits"])
+        d, K, G = t["d"], t["K"], 1 << t["group_shift"]
+        # Key times: the unary cells, the rank table (not needed reading in order), the places.
+        C = 1 << t["cell_shift"]
+        inner = (frames - 2 + C - 1) // C if frames > 1 else -1
+        cells = inner + 2
+        words = (K + cells + 63) // 64
+        bits = np.unpackbits(np.frombuffer(payload, np.uint8, words * 8, pos), bitorder="little")
+        cell = np.flatnonzero(bits) - np.arange(K)  # key k's one is at bit cell_k + k
+        key_frames = np.where(cell == 0, 0, np.where(cell > inner, frames - 1, 1 + (cell - 1) * C))
+        parts = dict(bitmap=pos, rank=pos + words * 8)
+        pos += words * 8 + 4 * ((((cells + 63) // 64) * _bits_for(K) + 31) // 32)
+        parts["in_cell"] = pos
+        ib = t["in_cell_bits"]
+        if ib:
+            places = payload[pos:pos + 4 * ((K * ib + 31) // 32)] + bytes(8)
+            key_frames = key_frames + np.array([read_bits(places, k * ib, ib) for k in range(K)], dtype=np.int64)
+            pos += 4 * ((K * ib + 31) // 32)
+        # Key values: the group table (offset, widths, anchor per row), then the records.
+        rows = (K - 1 + G - 1) // G + 1
+        row_bits = t["offset_bits"] + 4 * d + sum(t["abits"])
+        table = payload[pos:pos + 4 * ((rows * row_bits + 31) // 32)] + bytes(8)
+        parts.update(table=pos, row_bits=row_bits, rows=rows)
+        pos += 4 * ((rows * row_bits + 31) // 32)
+        parts["data"] = pos
+        data = payload[pos:pos + t["data_bytes"]] + bytes(8)
+        pos += t["data_bytes"]
+        entry = []
+        for e in range(rows):
+            bit = e * row_bits
+            off = read_bits(table, bit, t["offset_bits"])
             bit += t["offset_bits"]
-            w = [read_bits(table, bit + 5 * c, 5) for c in range(d)]
-            bit += 5 * d
-            k0 = g * G
-            offs[k0] = read_bits(table, bit, t["gs"])
-            bit += t["gs"]
+            w = [read_bits(table, bit + 4 * c, 4) for c in range(d)]
+            bit += 4 * d
+            a = []
             for c in range(d):
-                q[k0, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
+                a.append(_signed(read_bits(table, bit, t["abits"][c]), t["abits"][c]))
                 bit += t["abits"][c]
-            n = min(G, t["K"] - k0)
-            rec = start
-            exc = start + (n - 1) * (t["gs"] + sum(w))
-            for j in range(1, n):
-                k = k0 + j
-                offs[k] = read_bits(data, rec, t["gs"])
-                rec += t["gs"]
+            entry.append((off, w, a))
+        q = np.zeros((K, d), dtype=np.int64)
+        for e in range(rows):
+            q[min(e * G, K - 1)] = entry[e][2]
+        for e in range(rows - 1):
+            bit, w, a0 = entry[e]
+            a1 = entry[e + 1][2]
+            span = min(G, K - 1 - e * G)
+            exc = bit + (span - 1) * sum(w)
+            for i in range(1, span):
                 for c in range(d):
-                    q1 = q[k - 1, c]
-                    q2 = q[k - 2, c] if j >= 2 else q1
-                    pred = q1 + ((q1 - q2) * t["predictor"] + 1) // 2
+                    pred = a0[c] + ((a1[c] - a0[c]) * i) // span
                     if w[c] == 0:
-                        q[k, c] = pred
+                        q[e * G + i, c] = pred
                         continue
-                    r = _signed(read_bits(data, rec, w[c]), w[c])
-                    rec += w[c]
+                    r = _signed(read_bits(data, bit, w[c]), w[c])
+                    bit += w[c]
                     if r == -(1 << (w[c] - 1)):
-                        q[k, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
+                        q[e * G + i, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
                         exc += t["abits"][c]
                     else:
-                        q[k, c] = pred + r
-        key_frames = np.concatenate(([0], 1 + (np.asarray(set_cells, dtype=np.int64) << t["gs"]) + offs[1:]))
-        t.update(frames=key_frames[: t["K"]], q=q)
-    header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts, group_shift=gshift)
+                        q[e * G + i, c] = pred + r
+        t.update(frames=key_frames.astype(np.int64), q=q, parts=parts)
+    header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts)
     return header, descs
 
 
