@@ -67,8 +67,12 @@ def _mixed(samples):
     """A walk, a run and the walk again on one skeleton: PPCA cuts it (at frames 191 and 576),
     so it has pieces in both groups."""
     a, b = samples[0], samples[2]
+    # The run on the walk's bones: only nodes with position channels (the root) take its translations.
+    run = a.skeleton.offsets[None].repeat(b.frame_count, axis=0)
+    moved = [i for i in range(a.skeleton.node_count) if a.skeleton.position_axes(i)]
+    run[:, moved] = b.translations[:, moved]
     return Motion(a.skeleton, np.concatenate([a.rotations[1:], b.rotations[1:], a.rotations[1:]]),
-                  np.concatenate([a.translations[1:], b.translations[1:], a.translations[1:]]),
+                  np.concatenate([a.translations[1:], run[1:], a.translations[1:]]),
                   a.frame_time, "mixed")
 
 

@@ -88,8 +88,12 @@ def _mixed() -> Motion:
     """A walk, a run and the walk again on one skeleton: PPCA cuts it into pieces of two
     groups, so the rma-pca golden poses cover the cross-fade between pieces."""
     full, run = _bvh("02_01"), _bvh("09_11")
+    # The run on the walk's bones: only nodes with position channels (the root) take its translations.
+    run_t = full.skeleton.offsets[None].repeat(run.frame_count, axis=0)
+    moved = [i for i in range(full.skeleton.node_count) if full.skeleton.position_axes(i)]
+    run_t[:, moved] = run.translations[:, moved]
     return Motion(full.skeleton, np.concatenate([full.rotations[1:], run.rotations[1:], full.rotations[1:]]),
-                  np.concatenate([full.translations[1:], run.translations[1:], full.translations[1:]]),
+                  np.concatenate([full.translations[1:], run_t[1:], full.translations[1:]]),
                   full.frame_time, "mixed")
 
 
