@@ -332,7 +332,7 @@ def test_truncated_parts_are_rejected(small):
 
 def test_settings_reject_bad_values():
     for bad in ({"variance": 0.0}, {"variance": 1.5}, {"groups": 0}, {"coef_cm": -1}, {"key_grid": 9},
-                {"repeats": "yes"}, {"blend_seconds": 2.0}):
+                {"key_grid": 3}, {"repeats": "yes"}, {"blend_seconds": 2.0}):
         with pytest.raises(ValueError):
             RmaPcaSettings(**bad)
 

@@ -75,7 +75,8 @@ class RmaPcaSettings:
     quant_fraction : float, default 0.6
         Share of a curve's budget given to quantization.
     key_grid : int, default 4
-        New keys prefer multiples of this many frames (as in ``rma``).
+        New keys prefer the first frames of cells of this many frames (1, 2, 4 or 8: the
+        ``RMAL`` key cells, as in ``rma``).
     repeats : bool, default False
         Seed 003 §4.2 and eq. 6: run the repeated-motion analysis per group and code each
         repeated interval as a reference curve into its primary (the primary as the runtime
@@ -120,8 +121,8 @@ class RmaPcaSettings:
         if not 0.0 < float(self.quant_fraction) < 1.0:
             raise ValueError(f"quant_fraction must be in (0, 1), got {self.quant_fraction}")
         self.key_grid = int(self.key_grid)
-        if not 1 <= self.key_grid <= 8:
-            raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
+        if self.key_grid not in (1, 2, 4, 8):
+            raise ValueError(f"key_grid must be 1, 2, 4 or 8, got {self.key_grid}")
         if not isinstance(self.repeats, bool):
             raise ValueError(f"repeats must be true or false, got {self.repeats!r}")
         self.blend_seconds = float(self.blend_seconds)
