@@ -185,7 +185,7 @@ typedef struct asset_fact {
     const char* file; /* name in the golden folder */
     uint32_t codec;   /* make_golden.py: the codec of every clip */
     /* 1: make_golden.py writes it with every runtime; 0: only once the runtime decodes its
-     * codec (fk-wavelet, rma-pca: written when their ports land; set to 1 then). */
+     * codec (fk-wavelet: written when its port lands; set to 1 then). */
     int required;
     uint32_t clip_count, skeleton_count;
     clip_fact clips[2];
@@ -200,8 +200,8 @@ static const asset_fact k_facts[] = {
     {"rma_library.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11", 166, 1, 0}}},
     {"spline_rest_pose.mcd", MCD_CODEC_SPLINE, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},
     {"rma_rest_pose.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},
-    {"rma_pca_library.mcd", MCD_CODEC_RMA_PCA, 0, 2, 2, {{"07_01", 317, 0, 0}, {"mixed", MIXED_FRAMES, 1, 0}}},
-    {"rma_pca_repeats.mcd", MCD_CODEC_RMA_PCA, 0, 1, 1, {{"mixed", MIXED_FRAMES, 0, 0}}},
+    {"rma_pca_library.mcd", MCD_CODEC_RMA_PCA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"mixed", MIXED_FRAMES, 1, 0}}},
+    {"rma_pca_repeats.mcd", MCD_CODEC_RMA_PCA, 1, 1, 1, {{"mixed", MIXED_FRAMES, 0, 0}}},
     {"neural_09_11.mcd", MCD_CODEC_NEURAL, 1, 1, 1, {{"09_11_head", 90, 0, 0}}},
     {"fk_wavelet_09_11.mcd", MCD_CODEC_FK_WAVELET, 0, 1, 1, {{"09_11", 166, 0, 0}}},
     {"ik_predict_09_11.mcd", MCD_CODEC_IK_PREDICT, 1, 1, 1, {{"09_11_head", 100, 0, 0}}},
