@@ -125,7 +125,8 @@ typedef struct mcd_clip_info {
     uint32_t scratch_size; /* scratch bytes sampling this clip needs (mcd_scratch_size covers all) */
     /* The byte range [data_offset, data_offset + data_size) of the asset that sampling this
      * clip reads besides the header, section table, SKEL and CLIP sections (and the CNTC
-     * section with MCD_SAMPLE_CONTACTS): a game may page or stream clips by these ranges. */
+     * section with MCD_SAMPLE_CONTACTS; for rma-pca also its section's shared part, see
+     * docs/FORMAT.md RMAP): a game may page or stream clips by these ranges. */
     uint32_t data_offset;
     uint32_t data_size;
 } mcd_clip_info;

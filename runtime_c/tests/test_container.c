@@ -431,9 +431,10 @@ void test_prevalidated_open(void) {
 
 /* ---------------------------------------------------------------- clip data ranges */
 
-/* Sampling clip `clip` reads the container, its data range and (with contacts) the CNTC section,
- * nothing else (mocodec.h, mcd_clip_info): with every other byte overwritten by `fill`, every
- * frame and midpoint samples to the same bytes as the intact asset. */
+/* Sampling clip `clip` reads the container, its data range, (with contacts) the CNTC section and,
+ * for rma-pca, its RMAP section's shared part [0, shared_end) (mocodec.h, mcd_clip_info;
+ * docs/FORMAT.md), nothing else: with every other byte overwritten by `fill`, every frame and
+ * midpoint samples to the same bytes as the intact asset. */
 static void check_range_suffices(const mcd_golden* g, uint32_t clip, uint8_t fill, mcd_transform* p, mcd_transform* q) {
     static const uint32_t flag_sets[3] = {0, MCD_SAMPLE_WORLD | MCD_SAMPLE_CONTACTS, MCD_SAMPLE_NEAREST | MCD_SAMPLE_LOOP};
     const uint8_t* d = g->file.data;
@@ -448,6 +449,8 @@ static void check_range_suffices(const mcd_golden* g, uint32_t clip, uint8_t fil
         const uint8_t* e = d + 32 + 16 * (size_t)i;
         uint32_t off = mcd_test_rd_u32(e + 8), end = off + mcd_test_rd_u32(e + 12), b;
         if (container_section(e) || memcmp(e, "CNTC", 4) == 0) continue;
+        /* RMAP header: shared_end at byte 24 (the golden is valid, so it lies in the section). */
+        if (memcmp(e, "RMAP", 4) == 0) off += mcd_test_rd_u32(d + off + 24);
         for (b = off; b < end; ++b)
             if (b < ci.data_offset || b >= ci.data_offset + ci.data_size) copy[b] = fill;
     }
