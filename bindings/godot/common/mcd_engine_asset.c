@@ -1,5 +1,6 @@
 #include "mcd_engine_asset.h"
 
+#include <math.h>
 #include <string.h>
 
 void *mcd_engine_align16(void *p) {
@@ -96,4 +97,24 @@ mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_
     if (r != MCD_OK) return r;
     return mcd_retarget_pose(rig->map, a->pose, info.node_count, rig->rig_pose, rig->info.bone_count, rig->work,
                              rig->info.work_size);
+}
+
+void mcd_engine_rotation_from_rows(double m[3][3], float out[4]) {
+    double tr = m[0][0] + m[1][1] + m[2][2], q[4], n;
+    int k;
+    if (tr > 0) {
+        double s = 2.0 * sqrt(tr + 1.0);
+        q[3] = 0.25 * s, q[0] = (m[2][1] - m[1][2]) / s, q[1] = (m[0][2] - m[2][0]) / s, q[2] = (m[1][0] - m[0][1]) / s;
+    } else if (m[0][0] > m[1][1] && m[0][0] > m[2][2]) {
+        double s = 2.0 * sqrt(1.0 + m[0][0] - m[1][1] - m[2][2]);
+        q[3] = (m[2][1] - m[1][2]) / s, q[0] = 0.25 * s, q[1] = (m[0][1] + m[1][0]) / s, q[2] = (m[0][2] + m[2][0]) / s;
+    } else if (m[1][1] > m[2][2]) {
+        double s = 2.0 * sqrt(1.0 + m[1][1] - m[0][0] - m[2][2]);
+        q[3] = (m[0][2] - m[2][0]) / s, q[0] = (m[0][1] + m[1][0]) / s, q[1] = 0.25 * s, q[2] = (m[1][2] + m[2][1]) / s;
+    } else {
+        double s = 2.0 * sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]);
+        q[3] = (m[1][0] - m[0][1]) / s, q[0] = (m[0][2] + m[2][0]) / s, q[1] = (m[1][2] + m[2][1]) / s, q[2] = 0.25 * s;
+    }
+    n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (k = 0; k < 4; k++) out[k] = (float)(q[k] / n);
 }

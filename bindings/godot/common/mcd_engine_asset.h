@@ -53,6 +53,10 @@ mcd_result mcd_engine_rig_build(mcd_engine_rig *rig, const mcd_engine_asset *a, 
 mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_t clip, float time, uint32_t flags);
 void mcd_engine_rig_close(mcd_engine_rig *rig, const mcd_engine_allocator *mem);
 
+/* A rotation matrix given by its rows, as a unit quaternion x y z w (Shepperd's method: the
+ * largest of the four squares first, so nothing is divided by a small number). */
+void mcd_engine_rotation_from_rows(double rows[3][3], float out[4]); /* not const: C99 converts no double[3][3] to it */
+
 /* A 16-byte aligned pointer inside a block allocated with 16 bytes of slack. */
 void *mcd_engine_align16(void *p);
 

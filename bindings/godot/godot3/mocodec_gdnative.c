@@ -11,7 +11,6 @@
  * Built against the godot_headers of the crates.io crate gdnative-sys 0.11.3; only the core
  * 1.0 and NativeScript 1.0 tables are used, which every Godot 3.x provides.
  */
-#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -349,28 +348,6 @@ static godot_variant m_get_pose_scale(godot_object *o, void *md, void *ud, int a
 
 /* ---- a Skeleton as the rig ------------------------------------------------------------------ */
 
-/* A rotation matrix (rows) as a unit quaternion x y z w (Shepperd's method: the largest of the
- * four squares first, so no division by a small number). The core 1.0 API has no Basis -> Quat. */
-static void matrix_to_quat(const double m[3][3], float out[4]) {
-    double tr = m[0][0] + m[1][1] + m[2][2], q[4], n;
-    int k;
-    if (tr > 0) {
-        double s = 2.0 * sqrt(tr + 1.0);
-        q[3] = 0.25 * s, q[0] = (m[2][1] - m[1][2]) / s, q[1] = (m[0][2] - m[2][0]) / s, q[2] = (m[1][0] - m[0][1]) / s;
-    } else if (m[0][0] > m[1][1] && m[0][0] > m[2][2]) {
-        double s = 2.0 * sqrt(1.0 + m[0][0] - m[1][1] - m[2][2]);
-        q[3] = (m[2][1] - m[1][2]) / s, q[0] = 0.25 * s, q[1] = (m[0][1] + m[1][0]) / s, q[2] = (m[0][2] + m[2][0]) / s;
-    } else if (m[1][1] > m[2][2]) {
-        double s = 2.0 * sqrt(1.0 + m[1][1] - m[0][0] - m[2][2]);
-        q[3] = (m[0][2] - m[2][0]) / s, q[0] = (m[0][1] + m[1][0]) / s, q[1] = 0.25 * s, q[2] = (m[1][2] + m[2][1]) / s;
-    } else {
-        double s = 2.0 * sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]);
-        q[3] = (m[1][0] - m[0][1]) / s, q[0] = (m[0][2] + m[2][0]) / s, q[1] = (m[1][2] + m[2][1]) / s, q[2] = 0.25 * s;
-    }
-    n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    for (k = 0; k < 4; k++) out[k] = (float)(q[k] / n);
-}
-
 static mcd_transform from_transform(const godot_transform *x) {
     mcd_transform t;
     godot_basis b = core->godot_transform_get_basis(x), unit;
@@ -382,7 +359,7 @@ static mcd_transform from_transform(const godot_transform *x) {
         godot_vector3 r = core->godot_basis_get_row(&unit, row);
         for (col = 0; col < 3; col++) m[row][col] = core->godot_vector3_get_axis(&r, (godot_vector3_axis)col);
     }
-    matrix_to_quat(m, t.rotation);
+    mcd_engine_rotation_from_rows(m, t.rotation); /* the core 1.0 API has no Basis -> Quat */
     t.translation[0] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_X);
     t.translation[1] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_Y);
     t.translation[2] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_Z);
