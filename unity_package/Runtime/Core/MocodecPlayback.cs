@@ -75,6 +75,21 @@ namespace Mocodec
             }
         }
 
+        /// <summary>One engine frame for a component whose serialized fields hold the time and
+        /// settings: takes them, advances by <paramref name="deltaSeconds"/> (0: pose at
+        /// <paramref name="time"/> only), samples into <see cref="RigPose"/>, and returns the new
+        /// time for the component to keep.</summary>
+        public float Tick(float time, float speed, bool loop, bool contacts, float deltaSeconds)
+        {
+            Time = time;
+            Speed = speed;
+            Loop = loop;
+            Contacts = contacts;
+            Advance(deltaSeconds);
+            Evaluate();
+            return Time;
+        }
+
         /// <summary>Samples the clip at <see cref="Time"/> and retargets it into <see cref="RigPose"/>.</summary>
         public void Evaluate()
         {

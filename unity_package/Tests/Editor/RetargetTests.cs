@@ -258,6 +258,17 @@ namespace Mocodec.Tests
                 Assert.That(playback.Time, Is.EqualTo(0f));
                 Assert.That(playback.Playing, Is.False);
 
+                // Tick: the component's fields in, the new time out, the pose sampled there
+                playback.Playing = true;
+                float t = playback.Tick(d * 0.25f, 2f, true, true, d * 0.5f);
+                Assert.That(t, Is.EqualTo(d * 0.25f).Within(1e-3f * d), "0.25 d + 2 x 0.5 d wraps to 0.25 d");
+                MocodecTransform[] atT = (MocodecTransform[])playback.RigPose.Clone();
+                playback.Tick(t, 1f, true, true, 0f);
+                Assert.That(playback.Time, Is.EqualTo(t));
+                Assert.That(playback.RigPose, Is.EqualTo(atT), "a zero step samples the same time again");
+                playback.Tick(d * 0.75f, 1f, true, true, 0f);
+                Assert.That(playback.RigPose, Is.Not.EqualTo(atT), "another time, another pose");
+
                 MethodInfo m = typeof(GC).GetMethod("GetAllocatedBytesForCurrentThread", BindingFlags.Public | BindingFlags.Static);
                 if (m == null)
                     Assert.Ignore("GC.GetAllocatedBytesForCurrentThread is not available on this runtime");
