@@ -7,7 +7,9 @@ namespace Mocodec
     /// <summary>
     /// An opened asset (.mcd bytes). Load validates the bytes (checksum included unless asked
     /// not to), copies them into unmanaged memory and opens them, so the caller's array may be
-    /// reused at once and nothing the runtime reads is moved by the garbage collector.
+    /// reused at once and nothing the runtime reads is moved by the garbage collector. The
+    /// runtime samples those bytes in place: what the asset holds is its size, plus one scratch
+    /// buffer (<see cref="ScratchSize"/>) per <see cref="MocodecContext"/>.
     /// <para>Queries and <see cref="CreateContext"/> may be called from any thread. The
     /// <c>Sample</c> methods of the asset itself share one built-in context and so must be
     /// called from one thread at a time; give each other thread its own
@@ -20,11 +22,9 @@ namespace Mocodec
         const int AssetSlack = 256;
 
         IntPtr _bytes;
-        IntPtr _residentBlock;
         IntPtr _assetBlock;
         NativeAsset* _asset;
         readonly int _size;
-        readonly long _residentSize;
         readonly int _scratchSize;
         readonly ClipInfo[] _clips;
         MocodecContext _context;
@@ -33,25 +33,13 @@ namespace Mocodec
         {
             _size = data.Length;
             _clips = new ClipInfo[0];
-            UIntPtr resident;
-            byte empty = 0;
-            fixed (byte* p = data)
-                result = (MocodecResult)NativeMethods.ResidentSize(MocodecRuntime.NonNull(p, &empty), (UIntPtr)(uint)data.Length, (uint)flags, &resident);
-            call = "mcd_resident_size";
-            if (result != MocodecResult.Ok)
-                return;
-            _residentSize = (long)resident.ToUInt64();
-
             _bytes = Marshal.AllocHGlobal(Math.Max(_size, 1));
             Marshal.Copy(data, 0, _bytes, _size);
-            // mcd_open wants resident memory on a 16-byte boundary; allocate slack and align.
-            _residentBlock = Marshal.AllocHGlobal((IntPtr)(_residentSize + 16));
             _assetBlock = Marshal.AllocHGlobal(Marshal.SizeOf(typeof(NativeAsset)) + AssetSlack);
             _asset = (NativeAsset*)_assetBlock;
-            GC.AddMemoryPressure(_size + _residentSize);
+            GC.AddMemoryPressure(Math.Max(_size, 1));
 
-            result = (MocodecResult)NativeMethods.Open((byte*)_bytes, (UIntPtr)(uint)_size, (uint)flags,
-                                                       Align16(_residentBlock), resident, _asset);
+            result = (MocodecResult)NativeMethods.Open((byte*)_bytes, (UIntPtr)(uint)_size, (uint)flags, _asset);
             call = "mcd_open";
             if (result != MocodecResult.Ok)
             {
@@ -116,9 +104,6 @@ namespace Mocodec
 
         /// <summary>Size of the asset bytes.</summary>
         public int Size { get { return _size; } }
-
-        /// <summary>Unmanaged memory decoded at load for codecs that need it (0 for spline).</summary>
-        public long ResidentSize { get { return _residentSize; } }
 
         /// <summary>Bytes of scratch memory each <see cref="MocodecContext"/> holds.</summary>
         public int ScratchSize { get { return _scratchSize; } }
@@ -215,10 +200,10 @@ namespace Mocodec
                 return r;
             info.Name = MocodecRuntime.Utf8(n.Name);
             info.Parent = n.Parent;
-            info.IsEndSite = n.IsEndSite != 0;
-            info.RestOffsetX = n.RestOffset[0];
-            info.RestOffsetY = n.RestOffset[1];
-            info.RestOffsetZ = n.RestOffset[2];
+            info.Kind = (MocodecNodeKind)n.Kind;
+            info.Rest = new MocodecTransform(n.RestRotation[0], n.RestRotation[1], n.RestRotation[2], n.RestRotation[3],
+                                             n.RestTranslation[0], n.RestTranslation[1], n.RestTranslation[2],
+                                             n.RestScale[0], n.RestScale[1], n.RestScale[2]);
             info.Channels = new MocodecChannel[Math.Min(n.ChannelCount, 6u)];
             for (int i = 0; i < info.Channels.Length; i++)
                 info.Channels[i] = (MocodecChannel)n.Channels[i];
@@ -292,6 +277,20 @@ namespace Mocodec
             }
         }
 
+        /// <summary>Reads a skeleton's nodes (names, parents, rests) as a rig description: the rig
+        /// that an asset made from this very skeleton drives exactly.</summary>
+        public RigBone[] GetSkeletonAsRig(int skeleton)
+        {
+            int count = GetSkeletonInfo(skeleton).NodeCount;
+            RigBone[] bones = new RigBone[count];
+            for (int i = 0; i < count; i++)
+            {
+                NodeInfo node = GetNodeInfo(skeleton, i);
+                bones[i] = new RigBone(node.Name, node.Parent, node.Rest);
+            }
+            return bones;
+        }
+
         internal NativeAsset* Native
         {
             get
@@ -322,13 +321,10 @@ namespace Mocodec
             info.FrameRate = n.FrameRate;
             info.Duration = n.Duration;
             info.NodeCount = (int)n.NodeCount;
+            info.ScratchSize = (int)n.ScratchSize;
+            info.DataOffset = n.DataOffset;
+            info.DataSize = n.DataSize;
             return r;
-        }
-
-        static byte* Align16(IntPtr p)
-        {
-            long a = p.ToInt64();
-            return (byte*)(a + ((16 - (a & 15)) & 15));
         }
 
         void Free()
@@ -341,9 +337,8 @@ namespace Mocodec
             if (_context != null)
                 _context.Dispose();
             Marshal.FreeHGlobal(block);
-            Marshal.FreeHGlobal(Interlocked.Exchange(ref _residentBlock, IntPtr.Zero));
             Marshal.FreeHGlobal(Interlocked.Exchange(ref _bytes, IntPtr.Zero));
-            GC.RemoveMemoryPressure(_size + _residentSize);
+            GC.RemoveMemoryPressure(Math.Max(_size, 1));
         }
     }
 }

@@ -30,7 +30,10 @@ namespace Mocodec
     {
         None = 0,
         /// <summary>Structural checks only; still safe to sample.</summary>
-        SkipChecksum = 0x1
+        SkipChecksum = 0x1,
+        /// <summary>Open only: the bytes passed <see cref="MocodecRuntime.Validate"/> before (at
+        /// import or cook time), so opening reads the container alone, O(clips + sections).</summary>
+        Prevalidated = 0x2
     }
 
     /// <summary>Flags of <c>mcd_sample</c>. None: local transforms, clamped time, interpolated.</summary>
@@ -71,13 +74,39 @@ namespace Mocodec
     }
 
     /// <summary>One node's transform, laid out as <c>mcd_transform</c>: unit quaternion
-    /// (x y z w) then translation in the asset's units (see <see cref="SkeletonInfo.CmPerUnit"/>).
-    /// Right-handed, as in the BVH file.</summary>
+    /// (x y z w), translation in the asset's units (see <see cref="SkeletonInfo.CmPerUnit"/>),
+    /// scale; applied as scale, then rotation, then translation. Right-handed, as in the BVH
+    /// file (<see cref="MocodecSpace"/> converts).</summary>
     [StructLayout(LayoutKind.Sequential)]
     public struct MocodecTransform
     {
         public float Qx, Qy, Qz, Qw;
         public float Tx, Ty, Tz;
+        public float Sx, Sy, Sz;
+
+        /// <summary>No rotation, no translation, unit scale.</summary>
+        public static MocodecTransform Identity
+        {
+            get { return new MocodecTransform { Qw = 1f, Sx = 1f, Sy = 1f, Sz = 1f }; }
+        }
+
+        public MocodecTransform(float qx, float qy, float qz, float qw, float tx, float ty, float tz,
+                                float sx = 1f, float sy = 1f, float sz = 1f)
+        {
+            Qx = qx; Qy = qy; Qz = qz; Qw = qw;
+            Tx = tx; Ty = ty; Tz = tz;
+            Sx = sx; Sy = sy; Sz = sz;
+        }
+    }
+
+    /// <summary>What a skeleton node is (<c>mcd_node_info.kind</c>).</summary>
+    public enum MocodecNodeKind
+    {
+        Joint = 0,
+        /// <summary>A BVH End Site: no channels, no children.</summary>
+        EndSite = 1,
+        /// <summary>A point the encoder added at a leaf joint; not in the source file.</summary>
+        Virtual = 2
     }
 
     /// <summary>A clip of the directory.</summary>
@@ -94,6 +123,10 @@ namespace Mocodec
         public float Duration;
         /// <summary>Transforms one sample writes: the length a pose buffer needs.</summary>
         public int NodeCount;
+        /// <summary>Scratch bytes sampling this clip needs (<see cref="MocodecAsset.ScratchSize"/> covers every clip).</summary>
+        public int ScratchSize;
+        /// <summary>The byte range of the asset this clip's samples read (for paging clips).</summary>
+        public long DataOffset, DataSize;
     }
 
     /// <summary>A skeleton of the asset.</summary>
@@ -104,15 +137,19 @@ namespace Mocodec
         public float CmPerUnit;
     }
 
-    /// <summary>A node (joint or BVH end site) of a skeleton.</summary>
+    /// <summary>A node (joint, BVH end site or virtual point) of a skeleton.</summary>
     public struct NodeInfo
     {
         public string Name;
         /// <summary>Index of the parent node, -1 for a root.</summary>
         public int Parent;
-        public bool IsEndSite;
-        public float RestOffsetX, RestOffsetY, RestOffsetZ;
+        public MocodecNodeKind Kind;
+        /// <summary>The rest (bind) local transform: BVH OFFSET with identity rotation and unit
+        /// scale, or the glTF rest TRS.</summary>
+        public MocodecTransform Rest;
         /// <summary>BVH channels in file order.</summary>
         public MocodecChannel[] Channels;
+
+        public bool IsEndSite { get { return Kind == MocodecNodeKind.EndSite; } }
     }
 }

@@ -20,13 +20,12 @@ namespace Mocodec
         public uint ClipStringsSize;
         public uint MaxNodes;
         public uint ScratchSize;
+        public uint Contacts;
+        public uint ContactsSize;
+        public uint ContactsScratch;
         public fixed uint SkeletonOffsets[16];
         public uint SectionTable;
         public uint SectionCount;
-        public IntPtr Resident;
-        public UIntPtr ResidentSize;
-        public fixed uint ResidentOffsets[8];
-        public fixed uint CodecSections[8];
     }
 
     /// <summary>Mirror of <c>mcd_clip_info</c>.</summary>
@@ -40,6 +39,9 @@ namespace Mocodec
         public float FrameRate;
         public float Duration;
         public uint NodeCount;
+        public uint ScratchSize;
+        public uint DataOffset;
+        public uint DataSize;
     }
 
     /// <summary>Mirror of <c>mcd_skeleton_info</c>.</summary>
@@ -56,11 +58,59 @@ namespace Mocodec
     {
         public IntPtr Name;
         public int Parent;
-        public uint IsEndSite;
-        public fixed float RestOffset[3];
+        public uint Kind;
+        public fixed float RestTranslation[3];
+        public fixed float RestRotation[4];
+        public fixed float RestScale[3];
         public uint ChannelCount;
         public fixed byte Channels[6];
         public fixed byte Reserved[2];
+    }
+
+    /// <summary>Mirror of <c>mcd_rig_bone</c>.</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    internal struct NativeRigBone
+    {
+        public IntPtr Name;
+        public int Parent;
+        public uint Flags;
+        public MocodecTransform Rest;
+    }
+
+    /// <summary>Mirror of <c>mcd_retarget_pair</c>.</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    internal struct NativeRetargetPair
+    {
+        public IntPtr Bone;
+        public IntPtr Node;
+    }
+
+    /// <summary>Mirror of <c>mcd_retarget_config</c>.</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    internal unsafe struct NativeRetargetConfig
+    {
+        public uint Flags;
+        public uint UpAxis;
+        public float UnitScale;
+        public fixed float SpaceRotation[4];
+    }
+
+    /// <summary>Mirror of <c>mcd_retarget_issue</c>.</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    internal struct NativeRetargetIssue
+    {
+        public uint Where;
+        public uint Index;
+    }
+
+    /// <summary>Mirror of <c>mcd_retarget_info</c>.</summary>
+    [StructLayout(LayoutKind.Sequential)]
+    internal struct NativeRetargetInfo
+    {
+        public uint BoneCount;
+        public uint NodeCount;
+        public uint Matched;
+        public uint WorkSize;
     }
 
     internal static unsafe class NativeMethods
@@ -82,12 +132,8 @@ namespace Mocodec
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_validate")]
         internal static extern int Validate(byte* data, UIntPtr size, uint flags);
 
-        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_resident_size")]
-        internal static extern int ResidentSize(byte* data, UIntPtr size, uint flags, UIntPtr* outSize);
-
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_open")]
-        internal static extern int Open(byte* data, UIntPtr size, uint flags, byte* resident,
-                                        UIntPtr residentSize, NativeAsset* outAsset);
+        internal static extern int Open(byte* data, UIntPtr size, uint flags, NativeAsset* outAsset);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_clip_count")]
         internal static extern uint ClipCount(NativeAsset* asset);
@@ -116,5 +162,26 @@ namespace Mocodec
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_sample")]
         internal static extern int Sample(NativeAsset* asset, uint clip, float timeSeconds, uint flags,
                                           MocodecTransform* outPose, uint poseCapacity, byte* scratch);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_config_default")]
+        internal static extern void RetargetConfigDefault(NativeRetargetConfig* config);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_size")]
+        internal static extern int RetargetSize(NativeAsset* asset, uint skeleton, uint boneCount, UIntPtr* outSize);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_init")]
+        internal static extern int RetargetInit(NativeAsset* asset, uint skeleton, NativeRigBone* bones, uint boneCount,
+                                                NativeRetargetPair* pairs, uint pairCount, NativeRetargetConfig* config,
+                                                byte* map, UIntPtr mapSize, NativeRetargetIssue* outIssue);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_get_info")]
+        internal static extern int RetargetGetInfo(byte* map, NativeRetargetInfo* info);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_get_node")]
+        internal static extern int RetargetGetNode(byte* map, uint bone, int* outNode);
+
+        [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_pose")]
+        internal static extern int RetargetPose(byte* map, MocodecTransform* pose, uint nodeCount, MocodecTransform* output,
+                                                uint outputCapacity, byte* work, UIntPtr workSize);
     }
 }
