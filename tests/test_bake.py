@@ -167,11 +167,13 @@ def test_serial_runner_is_the_default(library):
 
 
 # ----------------------------------------------------------------------------- Dask
-distributed = pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install 'mocodec[cluster]')")
+@pytest.fixture(scope="module")
+def dask_installed() -> None:
+    pytest.importorskip("distributed", reason="dask.distributed is not installed (pip install 'mocodec[cluster]')")
 
 
 @pytest.fixture(scope="module")
-def cluster():
+def cluster(dask_installed):
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
@@ -211,7 +213,7 @@ def test_dask_survives_a_killed_worker(library, serial_asset, cluster):
     assert asset == serial_asset
 
 
-def test_dask_worker_death_without_retries_fails_cleanly(sample_paths, tmp_path, capsys):
+def test_dask_worker_death_without_retries_fails_cleanly(sample_paths, tmp_path, capsys, dask_installed):
     import dask
     from distributed import LocalCluster
 
@@ -235,7 +237,7 @@ def test_dask_worker_death_without_retries_fails_cleanly(sample_paths, tmp_path,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lib.mcd"]
 
 
-def test_bad_scheduler_address_is_one_line(sample_paths, tmp_path, capsys, monkeypatch):
+def test_bad_scheduler_address_is_one_line(sample_paths, tmp_path, capsys, monkeypatch, dask_installed):
     from mocodec.bake import runners
 
     monkeypatch.setattr(runners, "CONNECT_TIMEOUT_S", 2.0)
@@ -247,3 +249,11 @@ def test_bad_scheduler_address_is_one_line(sample_paths, tmp_path, capsys, monke
     assert len(err) == 1 and "cannot reach the Dask scheduler at 'tcp://127.0.0.1:1'" in err[0], err
     with pytest.raises(BakeError, match="cannot reach"):
         make_runner(None, "not an address")
+
+
+def test_a_worker_with_other_encoder_code_refuses_the_clip(library):
+    from mocodec.bake import EncoderMismatch, run_job
+
+    m = library[0][0]
+    with pytest.raises(EncoderMismatch, match="other mocodec code"):
+        run_job(dataclasses.replace(_job(m), fingerprint="0" * 64))
