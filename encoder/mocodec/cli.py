@@ -270,7 +270,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     paths = _expand_inputs(args.inputs)
     motions, units = _load(paths, args, args.quiet or args.json)
     progress = _progress(len(names) * len(args.sweep), not args.quiet and not args.json)
-    points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress)
+    with _runner(args) as runner:
+        points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress, runner)
     frames = sum(m.frame_count for m in motions)
     description = (f"{len(motions)} clip(s), {frames:,} frames ({', '.join(m.name for m in motions[:6])}"
                    f"{', ...' if len(motions) > 6 else ''}); codecs {', '.join(names)}; tolerances "
