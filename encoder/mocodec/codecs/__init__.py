@@ -9,7 +9,11 @@ is the :class:`~mocodec.tolerance.Tolerance`; every other setting has a default)
   each clip on its own (``check(payload)``: the clip's world error through the runtime), or
 * ``encode(motions, cm_per_unit, settings, check, progress) -> CodecOutput`` for a codec whose
   section holds data the clips share (``check(i, payload, prefix)``: clip ``i`` in a one-clip
-  section that starts with ``prefix``).
+  section that starts with ``prefix``); one whose clips are still fitted one by one (``rma``)
+  also takes ``runner`` and passes it to :func:`encode_each_clip`.
+
+:func:`encode_each_clip` hands the clips to a :class:`~mocodec.bake.Runner` (this process, local
+worker processes, a Dask cluster, a cache) and collects the payloads in clip order.
 
 A codec that cannot meet the tolerance raises :class:`~mocodec.tolerance.ToleranceNotMet`.
 Only codecs whose row says ``scale`` store scale tracks; :meth:`Codec.encode` refuses a clip
