@@ -257,3 +257,40 @@ def test_a_worker_with_other_encoder_code_refuses_the_clip(library):
     m = library[0][0]
     with pytest.raises(EncoderMismatch, match="other mocodec code"):
         run_job(dataclasses.replace(_job(m), fingerprint="0" * 64))
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            return [int(p) for p in f.read().split()]
+    except OSError:
+        return []
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to find the workers")
+def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "lib.mcd"
+    # A tight tolerance: the bake lasts long enough to be interrupted while the workers encode.
+    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, sample_paths), "-o", str(out),
+                          "-t", "0.05", "--units", "cmu", "-q", "--jobs", "2"], stderr=subprocess.PIPE, text=True,
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 60
+    while len(_children(p.pid)) < 3 and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)  # the resource tracker and two workers
+    workers = _children(p.pid)
+    assert len(workers) >= 3, f"the workers did not start: {p.poll()}"
+    time.sleep(0.5)
+    os.killpg(p.pid, signal.SIGINT)
+    try:
+        err = p.communicate(timeout=30)[1]
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        pytest.fail("the bake did not stop within 30 s of Ctrl-C")
+    assert p.returncode == 130 and err.strip() == "mocodec: interrupted", err
+    assert list(tmp_path.iterdir()) == []
+    time.sleep(0.5)
+    assert [w for w in workers if Path(f"/proc/{w}").exists() and "zombie" not in
+            Path(f"/proc/{w}/status").read_text().lower()] == []
