@@ -17,6 +17,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import __version__, codecs
+from .atomic_write import write_atomic
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM
 
@@ -52,26 +53,25 @@ class CliError(Exception):
 
 # ----------------------------------------------------------------------------- helpers
 def _progress(total: int, enabled: bool):
-    """A progress callback for multi-clip work: a bar on a terminal, a line per clip
-    otherwise (logs stay readable)."""
+    """A progress callback for multi-clip work: a bar on a terminal (clips done / total, time,
+    ETA, the last clip done), a line per clip otherwise (logs stay readable)."""
     done = [0]
     started = time.perf_counter()
-    tty = sys.stderr.isatty()
+    bar = None
+    if enabled and total >= 2 and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, unit="clip", file=sys.stderr, dynamic_ncols=True)
 
     def step(name: str) -> None:
         done[0] += 1
-        if not enabled or total < 2:
-            return
-        elapsed = time.perf_counter() - started
-        if tty:
-            width = 24
-            filled = int(width * done[0] / total)
-            bar = "#" * filled + "." * (width - filled)
-            end = "\n" if done[0] == total else ""
-            print(f"\r  [{bar}] {done[0]}/{total} {name:<16.16s} {elapsed:6.1f}s", end=end,
-                  file=sys.stderr, flush=True)
-        else:
-            print(f"  [{done[0]}/{total}] {name} ({elapsed:.1f}s)", file=sys.stderr, flush=True)
+        if bar is not None:
+            bar.set_postfix_str(name, refresh=False)
+            bar.update(1)
+            if done[0] == total:
+                bar.close()
+        elif enabled and total >= 2:
+            print(f"  [{done[0]}/{total}] {name} ({time.perf_counter() - started:.1f}s)", file=sys.stderr, flush=True)
 
     return step
 
@@ -156,9 +156,21 @@ def _encode(args: argparse.Namespace):
                    "reached is reported)") if codec == "rma-pca" else f"tolerance {args.tolerance} cm{eff}"
         print(f"encoding {len(motions)} clip(s) with codec {codec!r}, {promise}", file=sys.stderr)
     progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
-    result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
-                            contacts=bool(getattr(args, "contacts", False)))
+    with _runner(args) as runner:
+        result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
+                                contacts=bool(getattr(args, "contacts", False)), runner=runner)
     return motions, result
+
+
+def _runner(args: argparse.Namespace):
+    """Where the clips are encoded: ``--jobs``, ``--scheduler``, ``--cache`` (mocodec.bake)."""
+    from .bake import make_runner
+
+    try:
+        return make_runner(getattr(args, "jobs", None), getattr(args, "scheduler", None),
+                           getattr(args, "cache", None))
+    except (ValueError, OSError) as exc:
+        raise CliError(str(exc)) from None
 
 
 def _fmt_int(n: float) -> str:
@@ -231,7 +243,7 @@ def _result_json(result) -> dict[str, Any]:
 def cmd_encode(args: argparse.Namespace) -> int:
     _, result = _encode(args)
     out = Path(args.output)
-    out.write_bytes(result.asset)
+    write_atomic(out, result.asset)
     if args.json:
         print(json.dumps(_result_json(result), indent=2))
     elif not args.quiet:
@@ -258,7 +270,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     paths = _expand_inputs(args.inputs)
     motions, units = _load(paths, args, args.quiet or args.json)
     progress = _progress(len(names) * len(args.sweep), not args.quiet and not args.json)
-    points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress)
+    with _runner(args) as runner:
+        points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress, runner)
     frames = sum(m.frame_count for m in motions)
     description = (f"{len(motions)} clip(s), {frames:,} frames ({', '.join(m.name for m in motions[:6])}"
                    f"{', ...' if len(motions) > 6 else ''}); codecs {', '.join(names)}; tolerances "
@@ -288,7 +301,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise CliError("--codecs and --plot go with --sweep")
     motions, result = _encode(args)
     if args.output:
-        Path(args.output).write_bytes(result.asset)
+        write_atomic(args.output, result.asset)
     if args.json:
         data = _result_json(result)
         if all(m.skeleton.names == motions[0].skeleton.names for m in motions):
@@ -495,6 +508,15 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
                    help="store foot contact trajectories that the runtime restores by IK "
                         "(MCD_SAMPLE_CONTACTS); errors are measured with them applied "
                         "(default: off)")
+    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                   help="clips encoded at once, each in a process of its own (default: one per "
+                        "core; 1: one after the other in this process); the asset is the same bytes")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="encode the clips on a running Dask cluster, e.g. tcp://host:8786 (needs "
+                        "pip install 'mocodec[cluster]' here and on the workers; docs/CLUSTER.md)")
+    p.add_argument("--cache", metavar="DIR",
+                   help="keep each encoded clip in this folder and reuse it while the clip, the "
+                        "settings and the encoder are unchanged: a re-bake encodes changed clips only")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
