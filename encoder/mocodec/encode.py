@@ -12,7 +12,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, codecs
+from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import forward_kinematics
 from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
@@ -108,13 +108,17 @@ def encode_motions(
     ``contacts`` adds foot contact trajectories (a ``CNTC`` section, :mod:`mocodec.contacts`)
     and measures every error with them applied by the runtime's IK.
 
-    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip.
+    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip,
+    :class:`~mocodec.limits.LimitError` when a motion is outside the format's limits.
     """
     if not motions:
         raise EncodeError("nothing to encode")
+    if len(motions) > limits.MAX_CLIPS:
+        raise EncodeError(f"{len(motions):,} clips; an asset holds at most {limits.MAX_CLIPS:,}")
     tolerance = tolerance or Tolerance(1.0)
     for m in motions:
         m.validate()
+        limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
     entry = codecs.get(codec)
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
