@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import limits
 from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton
+from ..output import atomic_open
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
 
@@ -569,9 +570,10 @@ def format_bvh(motion: Motion, precision: int = 6, reference: np.ndarray | None 
 
 def write_bvh(motion: Motion, path: str | os.PathLike, precision: int = 6,
               reference: np.ndarray | None = None) -> None:
-    """Write ``motion`` to a BVH file (see :func:`format_bvh`)."""
+    """Write ``motion`` to a BVH file (see :func:`format_bvh`), atomically: the file at
+    ``path`` is replaced only once the whole text is on disk."""
     text = format_bvh(motion, precision, reference)
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
+    with atomic_open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
 
 
