@@ -232,6 +232,26 @@ def test_info_prints_the_asset_s_own_text_with_escapes(tmp_path, sample_paths, m
 
 
 # ---------------------------------------------------- the real reason, not an internal error
+def test_zero_offsets_and_a_huge_tolerance_encode(tmp_path):
+    """All-zero offsets ended in 'float division by zero', `--tolerance 1e8` in an asset the
+    runtime refused ('asset is malformed'): both encode now, and the asset opens."""
+    from mocodec.runtime import Result, validate
+    bvh = tmp_path / "zero.bvh"
+    bvh.write_text("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+                   "Zrotation Xrotation Yrotation\n JOINT b\n {\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation "
+                   "Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 0 0\n  }\n }\n}\nMOTION\nFrames: 3\n"
+                   "Frame Time: 0.1\n0 0 0 0 0 0 0 0 0\n0 0 0 0 10 0 5 0 0\n0 0 0 0 20 0 10 0 0\n")
+    for codec in ("rma", "spline"):
+        r = run("encode", str(bvh), "-o", str(tmp_path / "z.mcd"), "--codec", codec)
+        assert r.returncode == 0, r.stderr
+        assert "the skeleton has no height" in r.stdout
+    for codec in ("rma", "spline"):
+        out = tmp_path / f"{codec}.mcd"
+        r = run("encode", str(bvh), "-o", str(out), "--codec", codec, "-t", "1e8", "-q")
+        assert r.returncode == 0, r.stderr
+        assert validate(out.read_bytes()) == Result.OK
+
+
 def test_the_help_text_s_option_examples_work(tmp_path, sample_paths):
     """`-O block_shift=6`, the help's own example, failed on the default codec: every example
     the help gives now names its codec and works, and an unknown setting names the list."""
