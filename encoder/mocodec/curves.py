@@ -71,13 +71,13 @@ def fit_keys(
     mandatory : sorted frames that are always keys (must include 0 and F - 1).
     dequantize : maps original key values (K, d) to what the decoder will see.
     split : the curve's first segment is detached (:func:`catmull_rom`).
-    grid : key cells of ``grid`` frames (frames 1 ... F - 1 in cells from frame 1; frame 0 is
-        a cell of its own): a key costs a bit of the ``RMAL`` mask in a free cell and a whole
-        list entry in a cell that already holds one. A new key goes on the first frame of a
-        free cell where a failing interval has one (the cell start with the worst
-        error/budget ratio), else on its worst failing frame in a free cell, and only where
-        an interval has no free cell left on its worst failing frame. With ``grid == 1``
-        every frame is a cell.
+    grid : key cells of ``grid`` frames (frames 1 ... F - 2 in cells from frame 1; frame 0
+        and frame F - 1 are cells of their own): the ``RMAL`` key times cost a bit per cell
+        and per key, plus each key's place in its cell unless every key is on its cell's
+        first frame. A new key goes on the first frame of a free cell where a failing
+        interval has one (the cell start with the worst error/budget ratio), else on its worst
+        failing frame in a free cell, and only where an interval has no free cell left on its
+        worst failing frame. With ``grid == 1`` every frame is a cell.
 
     Returns
     -------
@@ -91,9 +91,11 @@ def fit_keys(
     keys = np.asarray(mandatory, dtype=np.int64)
     if start is not None:
         keys = np.union1d(keys, start)
-    # Cell of every frame, shifted by one so frame 0 has cell 0 to itself.
+    # Cell of every frame: frame 0 and the last frame have cells of their own.
     cell = np.zeros(frames, dtype=np.int64)
     cell[1:] = (np.arange(1, frames) - 1) // grid + 1
+    if frames > 2:
+        cell[-1] = cell[-2] + 1
     on_grid = np.zeros(frames, dtype=bool)
     on_grid[1:] = (np.arange(1, frames) - 1) % grid == 0
     taken = np.zeros(int(cell[-1]) + 1, dtype=bool)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits
-from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton
+from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton, unique_name
 from ..output import atomic_open
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
@@ -89,7 +89,9 @@ def read_bvh(path: str | os.PathLike) -> Motion:
     finally:
         if fd >= 0:
             os.close(fd)
-    return parse_bvh(data, path=str(path), name=limits.safe_clip_name(path.stem))
+    motion = parse_bvh(data, path=str(path), name=limits.safe_clip_name(path.stem))
+    motion.source = {"format": "bvh", "file": str(path)}
+    return motion
 
 
 def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = None) -> Motion:
@@ -387,12 +389,7 @@ def _end_site_names(nodes: list[_Node]) -> list[str]:
         if n.end_site:
             # Cut so the name keeps to the format's 255 bytes with room for a number.
             base = limits.truncate_utf8(nodes[n.parent].name, limits.MAX_NAME_BYTES - 10) + "_End"
-            name, k = base, 1
-            while name in used:
-                k += 1
-                name = f"{base}{k}"
-            used.add(name)
-            names.append(name)
+            names.append(unique_name(base, used, sep=""))
         else:
             names.append(n.name)
     return names
