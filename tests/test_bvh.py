@@ -671,3 +671,16 @@ def test_reading_a_long_clip_keeps_memory_near_the_motion(sample_paths: list[Pat
         tracemalloc.stop()
     assert motion.frame_count == 6000
     assert peak < kept + 2.5 * len(data), (peak / len(data), kept / len(data))
+
+
+def test_a_file_over_the_size_limit_is_refused_from_its_size(tmp_path: Path) -> None:
+    """Reading took the whole file whatever its size; now a file over the limit is refused
+    before a byte is read (the limit is 4 GiB: tried here with a small one)."""
+    from mocodec.io.files import MAX_INPUT_BYTES, read_regular_file
+    big = tmp_path / "big.bvh"
+    big.write_bytes(b"x" * 200)
+    with pytest.raises(BVHError) as info:
+        read_regular_file(big, "BVH file", lambda m: BVHError(m, str(big)), limit=100)
+    assert str(info.value) == f"{big}: 200 bytes; files over 100 bytes are not read"
+    assert read_regular_file(big, "BVH file", lambda m: BVHError(m, str(big)), limit=200) == b"x" * 200
+    assert MAX_INPUT_BYTES == 4 << 30

@@ -222,8 +222,8 @@ def test_clip_names_that_steer_a_path_are_refused(tmp_path, sample_paths, name):
 
 def test_info_prints_the_asset_s_own_text_with_escapes(tmp_path, sample_paths, monkeypatch, capsys):
     """`info` printed META text raw: an escape sequence in it reached the terminal."""
-    import mocodec.encode
-    monkeypatch.setattr(mocodec.encode, "__version__", "9\x1b[2J\x07")
+    import importlib
+    monkeypatch.setattr(importlib.import_module("mocodec.encode"), "__version__", "9\x1b[2J\x07")
     out = tmp_path / "a.mcd"
     assert main(["encode", str(sample_paths[2]), "-o", str(out), "-q"]) == 0
     assert main(["info", str(out)]) == 0

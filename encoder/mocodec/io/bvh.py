@@ -4,8 +4,8 @@ The reader accepts every layout BVH allows (any channel and rotation order, posi
 any joint, several roots, ``CHANNELS 0``, CRLF, tabs) and turns bad input into a
 :class:`BVHError` that names the file, the 1-based line and the fault. The format's limits
 (:mod:`mocodec.limits`: nodes, names, frames, frame rate, values) are checked where the value is
-read, before anything is allocated for it, and only regular files are read (a FIFO or a device
-would block or never end). The ``MOTION`` block is converted in chunks of lines (split, count
+read, before anything is allocated for it, and only regular files of bounded size are read
+(:mod:`mocodec.io.files`). The ``MOTION`` block is converted in chunks of lines (split, count
 per line, one float conversion each), so the text's tokens never all exist at once; lines are
 only scanned one by one to locate an error.
 """
@@ -14,7 +14,6 @@ from __future__ import annotations
 import itertools
 import os
 import re
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 from .. import limits
 from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton, unique_name
 from ..output import atomic_open
+from .files import read_regular_file
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
 
@@ -69,26 +69,7 @@ def read_bvh(path: str | os.PathLike) -> Motion:
     """Read a BVH file (a regular file: a FIFO, a device or a folder is refused before it is
     read); the clip is named after the file stem (:func:`mocodec.limits.safe_clip_name`)."""
     path = Path(path)
-    try:
-        # O_NONBLOCK: opening a FIFO does not wait for a writer; fstat then refuses it.
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except OSError as exc:
-        raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
-    try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else
-                    "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket" if stat.S_ISSOCK(mode)
-                    else "not a regular file")
-            raise BVHError(f"{kind}, not a BVH file (only regular files are read)", str(path))
-        with os.fdopen(fd, "rb") as f:
-            fd = -1
-            data = f.read()
-    except OSError as exc:
-        raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
-    finally:
-        if fd >= 0:
-            os.close(fd)
+    data = read_regular_file(path, "BVH file", lambda message: BVHError(message, str(path)))
     motion = parse_bvh(data, path=str(path), name=limits.safe_clip_name(path.stem))
     motion.source = {"format": "bvh", "file": str(path)}
     return motion
