@@ -265,3 +265,41 @@ def test_the_help_text_s_option_examples_work(tmp_path, sample_paths):
         assert r.returncode == 0, (option, codec, r.stderr)
     r = run("encode", str(sample_paths[2]), "-o", str(tmp_path / "x.mcd"), "-O", "block_shift=6")
     assert r.returncode == 1 and "its settings:" in _error_lines(r.stderr)[0]
+
+
+def test_library_warnings_are_one_line_and_silent_under_quiet(tmp_path, sample_paths, monkeypatch, capsys):
+    """rma-pca printed scikit-learn's two-line warnings even under -q: a warning raised while a
+    command runs is one 'mocodec: warning:' line, and nothing under -q or --json."""
+    import importlib
+    import warnings
+    module = importlib.import_module("mocodec.encode")
+    original = module.encode_motions
+
+    def warning_encoder(*args, **kwargs):
+        warnings.warn("n_components=96 must be between 1 and\nmin(n_samples, n_features)", UserWarning)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(module, "encode_motions", warning_encoder)
+    out = str(tmp_path / "x.mcd")
+    assert main(["encode", str(sample_paths[2]), "-o", out, "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["encode", str(sample_paths[2]), "-o", out]) == 0
+    err = capsys.readouterr().err
+    assert "mocodec: warning: n_components=96 must be between 1 and\n" in err
+    assert "UserWarning" not in err and "warnings.warn" not in err
+
+
+def test_rma_pca_without_a_variance_states_its_promise(tmp_path, sample_paths, monkeypatch, capsys):
+    """`--codec rma-pca` without `--pca-variance` failed formatting its own promise line
+    ('unsupported format string passed to NoneType')."""
+    import importlib
+    from mocodec.encode import EncodeError
+
+    def stop(*args, **kwargs):
+        raise EncodeError("stopped after the promise line")
+
+    monkeypatch.setattr(importlib.import_module("mocodec.encode"), "encode_motions", stop)
+    assert main(["encode", str(sample_paths[2]), "-o", str(tmp_path / "x.mcd"), "--codec", "rma-pca"]) == 1
+    err = capsys.readouterr().err
+    assert "PCA keeping its default share of the variance" in err
+    assert "mocodec: error: stopped after the promise line" in err
