@@ -684,3 +684,18 @@ def test_a_file_over_the_size_limit_is_refused_from_its_size(tmp_path: Path) -> 
     assert str(info.value) == f"{big}: 200 bytes; files over 100 bytes are not read"
     assert read_regular_file(big, "BVH file", lambda m: BVHError(m, str(big)), limit=200) == b"x" * 200
     assert MAX_INPUT_BYTES == 4 << 30
+
+
+def test_reading_a_small_file_reserves_no_more_than_it_holds(tmp_path: Path) -> None:
+    """The size limit must not become an allocation: read(limit + 1) reserved 4 GiB for any file."""
+    import tracemalloc
+    from mocodec.io.files import read_regular_file
+    small = tmp_path / "small.bvh"
+    small.write_bytes(b"y" * 1000)
+    tracemalloc.start()
+    try:
+        assert read_regular_file(small, "BVH file", lambda m: BVHError(m, str(small))) == b"y" * 1000
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20

@@ -308,3 +308,29 @@ def test_a_failed_gltf_write_leaves_the_previous_file(tmp_path, monkeypatch):
         back, = read_gltf(out, rate=4)
         assert back.frame_count == m.frame_count
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gltf", "out.glb", "out.gltf"]
+
+
+def test_format_limits_are_checked_before_resampling(tmp_path):
+    """Keys a million seconds apart were resampled into (frames, nodes) arrays of gigabytes
+    before any limit; a skeleton of more than 1,024 nodes was refused only by the encoder."""
+    import tracemalloc
+    doc = arm()
+    doc.animation("long", [(2, "rotation", np.array([0.0, 1e6]), quat_z([0, 90]), "LINEAR")])
+    path = doc.write(tmp_path / "long.gltf")
+    tracemalloc.start()
+    try:
+        with pytest.raises(GLTFError) as info:
+            read_gltf(path, rate=60)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert str(info.value) == (f"{path}: animation 0: keys from 0 s to 1e+06 s at 60 Hz: 60,000,001 frames; "
+                               "the format allows at most 16,777,216 per clip")
+    assert peak < 50 << 20
+    wide = Doc()
+    parent = None
+    for i in range(1100):
+        parent = wide.node(f"n{i}", parent, translation=[0, 1, 0])
+    wide.animation("a", [(1099, "rotation", np.array([0.0, 1.0]), quat_z([0, 10]), "LINEAR")])
+    with pytest.raises(GLTFError, match=r"nodes: 1,10\d nodes to animate .* at most 1,024"):
+        read_gltf(wide.write(tmp_path / "wide.gltf"))

@@ -39,7 +39,17 @@ def read_regular_file(path: str | os.PathLike, what: str, error: Callable[[str],
             raise error(f"{info.st_size:,} bytes; files over {limit:,} bytes are not read")
         with os.fdopen(fd, "rb") as f:
             fd = -1
-            data = f.read(limit + 1)  # a file that grows while it is read stays bounded
+            # read(n) reserves n bytes up front: ask for the stated size, then in small pieces
+            # for a file that grows while it is read, up to the limit.
+            parts = [f.read(info.st_size)]
+            total = len(parts[0])
+            while total <= limit:
+                more = f.read(1 << 16)
+                if not more:
+                    break
+                parts.append(more)
+                total += len(more)
+            data = parts[0] if len(parts) == 1 else b"".join(parts)
     except OSError as exc:
         raise error(f"cannot read: {exc.strerror or exc}") from None
     finally:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from .. import rotations as R
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton, unique_name
@@ -590,6 +591,9 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
     animated = {c.node for _, chans in clips_kept for c in chans}
     layout = _layout(doc, path, animated)
     sk = layout.skeleton
+    if sk.node_count > limits.MAX_NODES:
+        raise GLTFError(f"{sk.node_count:,} nodes to animate (joints, end points); the format allows at most "
+                        f"{limits.MAX_NODES:,}", str(path), "nodes")
     index = {g: k for k, g in enumerate(layout.gltf_nodes)}
     motions = []
     for a, chans in clips_kept:
@@ -600,6 +604,10 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
         # Frames up to the last key (a frame at or just past it; float32 key times may miss
         # the grid by a few ulps).
         frames = int(math.ceil((t1 - t0) * clip_rate - 1e-3)) + 1
+        problem = limits.frames_problem(frames) or limits.frame_rate_problem(clip_rate)
+        if problem:  # before the (frames, nodes) arrays exist
+            raise GLTFError(f"keys from {t0:g} s to {t1:g} s at {clip_rate:g} Hz: {problem}", str(path),
+                            f"animation {a}")
         times = t0 + np.arange(frames) / clip_rate
         n = sk.node_count
         rot = np.broadcast_to(sk.rest_rotations, (frames, n, 4)).copy()
