@@ -168,8 +168,9 @@ def test_a_failed_write_leaves_the_previous_file(tmp_path, sample_paths, monkeyp
     assert out.read_bytes()[:4] != b"prev" and sorted(p.name for p in tmp_path.iterdir()) == ["a.mcd"]
 
 
-def test_sigterm_while_encoding_leaves_the_previous_file(tmp_path, sample_paths):
-    """SIGTERM (a build farm's timeout) exits 143 with the previous output intact."""
+@pytest.mark.parametrize("signame, code, word", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
+def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths, signame, code, word):
+    """SIGTERM (a build farm's timeout) exits 143, Ctrl-C 130, with the previous output intact."""
     import signal
     out = tmp_path / "a.mcd"
     out.write_bytes(b"previous asset")
@@ -180,10 +181,10 @@ def test_sigterm_while_encoding_leaves_the_previous_file(tmp_path, sample_paths)
         seen.append(line)
         if line.startswith("encoding "):
             break
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(getattr(signal, signame))
     rest = p.stderr.read()
-    assert p.wait(timeout=60) == 143, "".join(seen) + rest
-    assert "terminated" in rest and "Traceback" not in rest
+    assert p.wait(timeout=60) == code, "".join(seen) + rest
+    assert word in rest and "Traceback" not in rest
     assert out.read_bytes() == b"previous asset"
     assert sorted(q.name for q in tmp_path.iterdir()) == ["a.mcd"]
 
