@@ -347,19 +347,23 @@ def test_dev_set_meets_one_cm_on_every_frame_as_one_library(shared_cmu_dir):
 
 @pytest.mark.parametrize("grid", [1, 2, 4, 8])
 def test_key_grid_puts_keys_on_cell_starts_and_the_tolerance_holds(sample_paths, grid):
-    """Keys sit on the first frames of cells of ``grid`` frames (a track that needs a key
-    elsewhere falls back to smaller cells, which its descriptor says)."""
+    """Most keys sit on the first frames of cells of ``grid`` frames (1 ... 8: 100 % ... 82 %
+    on 09_11), and a track whose descriptor stores no places in cells has every key on its
+    cells' first frames (the writer picks the cell size per track, so a track may take cells
+    that need places)."""
     m = read_bvh(sample_paths[0])
     result = _encode([m], 1.0, key_grid=grid)
     (_, payload), = _payloads(result.asset)
     _, tracks = decode_keys(payload)
-    kept = 0
+    kept = total = 0
     for t in tracks:
-        C = 1 << t["cell_shift"]  # the writer's: the largest the keys allow
+        C = 1 << t["cell_shift"]
         inner = t["frames"][(t["frames"] > 0) & (t["frames"] < m.frame_count - 1)]
-        assert np.all((inner - 1) % C == 0)
-        kept += bool(np.all((inner - 1) % grid == 0))
-    assert kept >= 0.75 * len(tracks), (kept, len(tracks))
+        if t["in_cell_bits"] == 0:
+            assert np.all((inner - 1) % C == 0)
+        kept += int(np.sum((inner - 1) % grid == 0))
+        total += len(inner)
+    assert kept >= 0.75 * total, (kept, total)
     assert _error_cm(Asset(result.asset), m).max() <= 1.0
 
 

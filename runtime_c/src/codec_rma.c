@@ -612,7 +612,7 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t) {
                 k++;
                 in_cell++;
             } else {
-                if (cell >= t->cells) return MCD_ERROR_MALFORMED;
+                if (cell >= t->cells || (cell == 0 && k != 1u)) return MCD_ERROR_MALFORMED;
                 cell++;
                 in_cell = 0;
             }
