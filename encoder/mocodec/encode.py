@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, codecs
+from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
@@ -140,13 +140,17 @@ def encode_motions(
     clips (local processes, a Dask cluster, a cache: :func:`mocodec.bake.make_runner`; None:
     one after the other in this process); the asset is the same bytes either way.
 
-    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip.
+    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip,
+    :class:`~mocodec.limits.LimitError` when a motion is outside the format's limits.
     """
     if not motions:
         raise EncodeError("nothing to encode")
+    if len(motions) > limits.MAX_CLIPS:
+        raise EncodeError(f"{len(motions):,} clips; an asset holds at most {limits.MAX_CLIPS:,}")
     tolerance = tolerance or Tolerance(DEFAULT_TOLERANCE_CM)
     for m in motions:
         m.validate()
+        limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
     entry = codecs.get(codec)
     from .load import sampling_notes
     cm = [u.cm_per_unit for u in units]

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 from .encode import EncodeError, encode_motions
+from .output import atomic_open
 from .metrics import combine
 from .motion import Motion
 from .tolerance import Tolerance
@@ -171,5 +172,6 @@ def sweep_png(points: list[SweepPoint], description: str, path: Path) -> None:
         ax.legend()
     fig.suptitle(description, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with atomic_open(path, "wb") as f:
+        fig.savefig(f, dpi=120, format="png")
     plt.close(fig)
