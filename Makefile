@@ -4,6 +4,8 @@
 #   make web    rebuild what `mocodec view` ships: the wasm runtime and the viewer's bundle
 #   make bench  every codec beside ACL 2.1 in one process: bytes, engine bytes, open, µs per pose
 #               (bench/engine_bench.py; BENCH_ASSETS="rma:1,0.02 spline:1" ROUNDS=11 SHARED=../shared)
+#   make unity-plugins  rebuild and test the runtime for Linux x86-64, Linux arm64 and Windows
+#               x86-64 (make -C runtime_c platforms) and copy them into unity_package/Plugins, to commit
 #   make bench-rd  the rate-distortion sweeps of rma and spline, and docs/rd_curve.png
 # demo and test install what they need (a Python venv in .venv; clang and the engine tools from apt);
 # bench also needs a C++17 compiler.
@@ -17,7 +19,7 @@ BENCH_ASSETS ?= rma:1,0.02 spline:1 fk-wavelet:1 ik-predict:1 neural:1
 ROUNDS ?= 11
 SHARED ?= ../shared
 
-.PHONY: demo test web venv test-c test-python test-engines bench bench-rd clean
+.PHONY: demo test web unity-plugins venv test-c test-python test-engines bench bench-rd clean
 
 $(VENV)/.installed: encoder/pyproject.toml bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -40,6 +42,12 @@ web:
 	$(MAKE) -C runtime_c wasm
 	install -m 644 runtime_c/build/wasm/mocodec.wasm $(VIEW_STATIC)/mocodec.wasm
 	cd viewer && { [ -d node_modules ] || npm ci --no-audit --no-fund --silent; } && node build.mjs
+
+# The Unity package ships these (a git-URL install has no build step); tests/test_unity_package.py
+# fails when they are missing or older than runtime_c/.
+unity-plugins:
+	$(MAKE) -C runtime_c platforms PLATFORMS="linux-x86_64 linux-aarch64 windows-x86_64"
+	python3 unity_package/Tools~/update_plugins.py
 
 # Encodes (cached in bench/results/assets/), builds and runs the driver; the timed part holds
 # flock /tmp/mocodec-bench.lock. Writes bench/results/engine_bench/<UTC time>.md and .json.

@@ -3,7 +3,9 @@
 # shellcheck shell=bash
 
 MCD_REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-MCD_RUNTIME="$MCD_REPO/runtime_c"
+# MCD_RUNTIME_DIR builds the bindings against another copy of runtime_c (e.g. one without a codec
+# that does not compile yet); the default is the repository's.
+MCD_RUNTIME="${MCD_RUNTIME_DIR:-$MCD_REPO/runtime_c}"
 MCD_BUILD="$MCD_REPO/bindings/build"
 
 # The encoder's Python: the dev venv when there is one, else whatever python3 has it installed.

@@ -2,13 +2,16 @@
 
     python bindings/make_engine_test_data.py OUT_DIR
 
-OUT_DIR receives the golden assets of tests/golden/v1 (the shared vectors every binding replays)
-and, for every codec the encoder offers, fresh assets encoded now from the sample BVH clips, each
-with a ``.poses.txt`` made by the Python binding of the C runtime (format: tests/golden/make_golden.py).
-A codec whose encoder fails is reported on stderr and left out; the script fails when spline does.
+OUT_DIR receives the golden assets of tests/golden/v2 (format 2, the shared vectors every binding
+replays; MCD_GOLDEN_DIR names another folder) as golden_<name>.mcd / .poses.txt, and, for every
+codec the encoder offers, fresh assets encoded now from the sample BVH clips, each with a
+``.poses.txt`` made by the Python binding of the C runtime (format: tests/golden/make_golden.py).
+A codec whose encoder fails, and a golden whose codec this runtime was built without, are
+reported on stderr, one line each, and left out; the script fails when spline does.
 """
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -23,15 +26,33 @@ from mocodec.encode import encode_motions  # noqa: E402
 from mocodec.io import read_bvh  # noqa: E402
 from mocodec.tolerance import Tolerance  # noqa: E402
 from mocodec.units import resolve_units  # noqa: E402
+from mocodec_runtime import Asset, Result, RuntimeResultError  # noqa: E402
 
-GOLDEN = REPO / "tests" / "golden" / "v1"
+GOLDEN = Path(os.environ.get("MCD_GOLDEN_DIR") or REPO / "tests" / "golden" / "v2")
+
+
+def copy_goldens(out: Path) -> int:
+    """Copies every golden this runtime can open; returns how many."""
+    copied = 0
+    for f in sorted(GOLDEN.glob("*.mcd")):
+        try:
+            Asset(f.read_bytes())
+        except RuntimeResultError as exc:
+            if exc.code == Result.UNSUPPORTED:  # a codec not built into this runtime (yet)
+                print(f"make_engine_test_data: golden {f.name} left out: {exc}", file=sys.stderr)
+                continue
+            raise SystemExit(f"make_engine_test_data: {f}: the runtime refuses a golden asset: {exc}")
+        shutil.copyfile(f, out / f"golden_{f.name}")
+        shutil.copyfile(f.with_suffix(".poses.txt"), out / f"golden_{f.stem}.poses.txt")
+        copied += 1
+    return copied
 
 
 def main(out: Path) -> int:
     out.mkdir(parents=True, exist_ok=True)
-    for f in sorted(GOLDEN.iterdir()):
-        if f.suffix in (".mcd", ".txt"):
-            shutil.copyfile(f, out / f"golden_{f.name}")
+    if copy_goldens(out) == 0:
+        print(f"make_engine_test_data: no golden asset in {GOLDEN}", file=sys.stderr)
+        return 1
     run = read_bvh(SAMPLES / "09_11.bvh")  # 31 joints + 7 end sites: the benchmark clip
     walk = read_bvh(SAMPLES / "07_01.bvh").slice(0, 121)
     walk.name = "07_01_head"

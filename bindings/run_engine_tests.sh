@@ -2,7 +2,7 @@
 # Everything about the engine bindings that can run on this machine, in one command:
 #   csharp   the C# P/Invoke core + the Unity package's NUnit tests, mono + nunit-console 2.6
 #   unity    the package's UnityEngine/UnityEditor code parsed by mcs; the UPM tarball packed
-#            with the Linux plugin and its layout checked (.meta files, asmdef references)
+#            from the package as committed (pack.py refuses it without its .meta files and plugins)
 #   native   runtime_c's CMake preset linux-x86_64, the engine plugin build (runtime_c/test_platforms.sh
 #            builds and runs the cross-built ones: Linux aarch64, Windows x86-64)
 #   godot3   the GDNative binding tested in the real headless engine, godot3-server 3.2.3
@@ -90,16 +90,18 @@ else
 fi
 
 unity_check() {
-    local passed=0 failed=0 lib
-    if mcs --parse "$MCD_REPO"/unity_package/Runtime/Unity/*.cs "$MCD_REPO"/unity_package/Editor/*.cs; then
-        echo "unity: UnityEngine/UnityEditor code parsed by mcs (compiled only inside Unity)"
+    local passed=0 failed=0
+    if mcs --parse "$MCD_REPO"/unity_package/Runtime/Unity/*.cs "$MCD_REPO"/unity_package/Editor/*.cs \
+            "$MCD_REPO"/unity_package/Samples~/*/*.cs; then
+        echo "unity: UnityEngine/UnityEditor code and the sample parsed by mcs (compiled only inside Unity)"
         passed=$((passed + 1))
     else
         failed=$((failed + 1))
     fi
-    lib="$(mcd_shared_lib)" && mcd_test_data "$MCD_BUILD/unity_data" &&
-        python3 "$MCD_REPO/unity_package/Tools~/pack.py" "$MCD_BUILD" --plugin "linux-x86_64=$lib" \
-            --test-data "$MCD_BUILD/unity_data" && passed=$((passed + 1)) || failed=$((failed + 1))
+    # The package as committed (plugins, .meta files), with the test assets for the Test Runner.
+    mcd_test_data "$MCD_BUILD/unity_data" &&
+        python3 "$MCD_REPO/unity_package/Tools~/pack.py" "$MCD_BUILD" --test-data "$MCD_BUILD/unity_data" &&
+        passed=$((passed + 1)) || failed=$((failed + 1))
     echo "unity: $passed passed, $failed failed"
     [ $failed = 0 ]
 }

@@ -567,3 +567,135 @@ def test_braces_on_header_lines() -> None:
     assert text.count("{") == 3 and text.count("\n") == len(BASE) - 4
     motion = parse_bvh(text)
     assert motion.skeleton.names == ["Hips", "Spine", "Spine_End"]
+
+
+# ------------------------------------------------------- the format's limits at read time
+LIMITS = [
+    ("OFFSET 1e308 (hung in an SVD)", replaced(8, "\t\tOFFSET 0 1e308 0"), 8, "outside the format's +-1e7"),
+    ("OFFSET beyond 1e7", replaced(8, "\t\tOFFSET 0 -2e7 0"), 8, "outside the format's +-1e7"),
+    ("frame value 1e308", replaced(19, "1e308 2 3 10 20 30 40 50 60"), 19, "value 1: '1e308' is outside"),
+    ("rotation 1e300 degrees", replaced(20, "4 5 6 11 21 31 41 51 1e300"), 20, "value 9: '1e300' is outside"),
+    ("Frame Time 1e-7", replaced(18, "Frame Time: 1e-7"), 18, "at most 100,000"),
+    ("Frame Time 1e-300", replaced(18, "Frame Time: 1e-300"), 18, "at most 100,000"),
+    ("Frame Time 1e40", replaced(18, "Frame Time: 1e40"), 18, "below what binary32 holds"),
+    ("Frames above 2^24", replaced(17, "Frames: 16777217"), 17, "at most 16,777,216 per clip"),
+    ("Frames of 40 digits", replaced(17, "Frames: " + "9" * 40), 17, "whole number"),
+    ("joint name with an escape", replaced(6, "\tJOINT Sp\x1b[31mine"), 6, "control character U+001B"),
+    ("joint name of 256 bytes", replaced(6, "\tJOINT " + "é" * 128), 6, "256 bytes; the format allows at most 255"),
+    ("a megabyte of garbage", inserted(4, "x" * 1_000_000), 5, "unexpected 'xxxxxxxx"),
+]
+
+
+@pytest.mark.parametrize("lines, line, phrase", [c[1:] for c in LIMITS], ids=[c[0] for c in LIMITS])
+def test_format_limits_are_checked_at_read_time(lines: list[str], line: int, phrase: str) -> None:
+    """Every limit of docs/FORMAT.md is refused where the file states it (the encoder used to
+    write assets the runtime refuses, or hang, on these), and a message stays short."""
+    with pytest.raises(BVHError) as info:
+        parse_bvh("\n".join(lines) + "\n", path="bad.bvh")
+    assert (info.value.path, info.value.line) == ("bad.bvh", line), str(info.value)
+    assert phrase in info.value.message
+    assert len(str(info.value)) < 200 and "\x1b" not in str(info.value)
+
+
+def test_a_thousand_and_twenty_five_nodes_are_refused_at_the_node(tmp_path: Path) -> None:
+    """20,000 joints: refused at the 1,025th node, before the skeleton (and the encoder's
+    node-by-node matrices) exist, so reading stays small and quick."""
+    import tracemalloc
+    lines = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", "\tCHANNELS 3 Xposition Yposition Zposition"]
+    for i in range(20_000):
+        lines += [f"\tJOINT J{i}", "\t{", "\t\tOFFSET 1 0 0", "\t\tCHANNELS 0", "\t}"]
+    lines += ["}", "MOTION", "Frames: 1", "Frame Time: 0.01", "0 0 0"]
+    text = "\n".join(lines) + "\n"
+    tracemalloc.start()
+    try:
+        with pytest.raises(BVHError) as info:
+            parse_bvh(text, path="wide.bvh")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert info.value.line == 5 + 5 * 1023 + 1 and "more than 1,024 nodes" in info.value.message
+    assert peak < 40 * len(text)
+    ok = lines[:5 + 5 * 1023] + ["}", "MOTION", "Frames: 1", "Frame Time: 0.01", "0 0 0"]
+    assert parse_bvh("\n".join(ok) + "\n").skeleton.node_count == 1024
+
+
+def test_only_regular_files_are_read(tmp_path: Path) -> None:
+    """A FIFO blocked forever and /dev/zero grew to gigabytes: both are refused unread."""
+    import os
+    import subprocess
+    import sys
+    fifo = tmp_path / "pipe.bvh"
+    os.mkfifo(fifo)
+    code = ("import sys; from mocodec.io import read_bvh, BVHError\n"
+            "for p in sys.argv[1:]:\n"
+            "    try: read_bvh(p)\n"
+            "    except BVHError as e: print(e)\n")
+    r = subprocess.run([sys.executable, "-c", code, str(fifo), "/dev/zero", str(tmp_path)],
+                       capture_output=True, text=True, timeout=60)
+    assert r.stdout.splitlines() == [
+        f"{fifo}: a FIFO, not a BVH file (only regular files are read)",
+        "/dev/zero: a device, not a BVH file (only regular files are read)",
+        f"{tmp_path}: a folder, not a BVH file (only regular files are read)"], r.stderr
+
+
+def test_clip_names_from_file_names_keep_to_the_format(tmp_path: Path) -> None:
+    """A file name may hold what a clip name may not (':', a control character): the clip is
+    named with '_' in their place and its asset opens (it was refused by the runtime)."""
+    from mocodec.encode import encode_motions
+    from mocodec.runtime import Asset
+    from mocodec.units import resolve_units
+    path = tmp_path / "take:2\x1b.bvh"
+    path.write_text("\n".join(BASE) + "\n")
+    motion = read_bvh(path)
+    assert motion.name == "take_2_"
+    result = encode_motions([motion], [resolve_units(motion.skeleton, "cm")], "spline")
+    assert [c.name for c in Asset(result.asset).clips] == ["take_2_"]
+
+
+def test_reading_a_long_clip_keeps_memory_near_the_motion(sample_paths: list[Path]) -> None:
+    """Reading held every token of the MOTION block as a Python string at once (11.6 times the
+    text at the peak on a CMU clip); now lines are converted in chunks and a node's rotations
+    made continuous one node at a time: the peak is what the motion keeps (its float64
+    rotations and translations) plus at most 2.5 times the text."""
+    import tracemalloc
+    lines = sample_paths[0].read_text().splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith("Frames:"))
+    frames = [line for line in lines[at + 2:] if line.strip()]
+    text = "\n".join(lines[:at] + ["Frames: 6000", lines[at + 1]] + (frames * 20)[:6000]) + "\n"
+    data = text.encode()
+    tracemalloc.start()
+    try:
+        motion = parse_bvh(data)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert motion.frame_count == 6000
+    assert peak < kept + 2.5 * len(data), (peak / len(data), kept / len(data))
+
+
+def test_a_file_over_the_size_limit_is_refused_from_its_size(tmp_path: Path) -> None:
+    """Reading took the whole file whatever its size; now a file over the limit is refused
+    before a byte is read (the limit is 4 GiB: tried here with a small one)."""
+    from mocodec.io.files import MAX_INPUT_BYTES, read_regular_file
+    big = tmp_path / "big.bvh"
+    big.write_bytes(b"x" * 200)
+    with pytest.raises(BVHError) as info:
+        read_regular_file(big, "BVH file", lambda m: BVHError(m, str(big)), limit=100)
+    assert str(info.value) == f"{big}: 200 bytes; files over 100 bytes are not read"
+    assert read_regular_file(big, "BVH file", lambda m: BVHError(m, str(big)), limit=200) == b"x" * 200
+    assert MAX_INPUT_BYTES == 4 << 30
+
+
+def test_reading_a_small_file_reserves_no_more_than_it_holds(tmp_path: Path) -> None:
+    """The size limit must not become an allocation: read(limit + 1) reserved 4 GiB for any file."""
+    import tracemalloc
+    from mocodec.io.files import read_regular_file
+    small = tmp_path / "small.bvh"
+    small.write_bytes(b"y" * 1000)
+    tracemalloc.start()
+    try:
+        assert read_regular_file(small, "BVH file", lambda m: BVHError(m, str(small))) == b"y" * 1000
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20

@@ -117,3 +117,190 @@ def test_demo_runs(tmp_path):
     assert "met on every frame" in r.stdout
     assert (tmp_path / "demo" / "samples.mcd").exists()
     assert len(list((tmp_path / "demo" / "decoded").glob("*.bvh"))) == 3
+
+
+# --------------------------------------------------------------- output safety (issue 16)
+def _error_lines(stderr: str) -> list[str]:
+    assert "Traceback" not in stderr, stderr
+    return [line for line in stderr.splitlines() if line.startswith("mocodec: error:")]
+
+
+def test_an_output_that_is_an_input_is_refused(tmp_path, sample_paths):
+    """`encode in.bvh -o in.bvh` overwrote the source with the asset and exited 0; by any
+    spelling of the same file (a link, ./x) it is refused before any work, the file unchanged."""
+    import os
+    src = tmp_path / "in.bvh"
+    src.write_bytes(sample_paths[2].read_bytes())
+    before = src.read_bytes()
+    (tmp_path / "link.bvh").symlink_to(src)
+    for out in (str(src), str(tmp_path / "link.bvh"), os.path.join(str(tmp_path), ".", "in.bvh")):
+        r = run("encode", str(src), "-o", out, "-q")
+        assert r.returncode == 1 and len(_error_lines(r.stderr)) == 1, r.stderr
+        assert "the output is the input" in r.stderr
+    assert src.read_bytes() == before
+    asset = tmp_path / "a.mcd"
+    assert main(["encode", str(src), "-o", str(asset), "-q"]) == 0
+    r = run("decode", str(asset), "-o", str(asset))
+    assert r.returncode == 1 and "the output is the input" in r.stderr
+    assert asset.read_bytes()[:4] == b"MCD\0" or asset.stat().st_size > 0
+    assert main(["info", str(asset)]) == 0
+
+
+def test_a_failed_write_leaves_the_previous_file(tmp_path, sample_paths, monkeypatch, capsys):
+    """A full disk replaced the previous good asset with a truncated one; now the new asset
+    goes to a temporary file beside it that is renamed only when complete, and removed when not."""
+    import errno
+    import os
+    out = tmp_path / "a.mcd"
+    out.write_bytes(b"previous asset")
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", full)
+    assert main(["encode", str(sample_paths[2]), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert len(_error_lines(err)) == 1 and "No space left" in err and str(out) in err, err
+    assert out.read_bytes() == b"previous asset"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mcd"]
+    monkeypatch.undo()
+    assert main(["encode", str(sample_paths[2]), "-o", str(out), "-q"]) == 0
+    assert out.read_bytes()[:4] != b"prev" and sorted(p.name for p in tmp_path.iterdir()) == ["a.mcd"]
+
+
+@pytest.mark.parametrize("signame, code, word", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
+def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths, signame, code, word):
+    """SIGTERM (a build farm's timeout) exits 143, Ctrl-C 130, with the previous output intact."""
+    import signal
+    out = tmp_path / "a.mcd"
+    out.write_bytes(b"previous asset")
+    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, sample_paths),
+                          "-o", str(out), "-t", "0.05"], stderr=subprocess.PIPE, text=True)
+    seen = []
+    for line in p.stderr:  # wait until encoding has started (imports done, handler set)
+        seen.append(line)
+        if line.startswith("encoding "):
+            break
+    p.send_signal(getattr(signal, signame))
+    rest = p.stderr.read()
+    assert p.wait(timeout=60) == code, "".join(seen) + rest
+    assert word in rest and "Traceback" not in rest
+    assert out.read_bytes() == b"previous asset"
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["a.mcd"]
+
+
+# ------------------------------------------------------- names that steer a path or a terminal
+def _renamed_asset(tmp_path, sample, old: bytes, new: bytes):
+    """An asset of ``sample`` whose clip ``old`` is renamed ``new`` (same length) with the
+    checksum made right again: only the name rules can refuse it."""
+    import zlib
+    src = tmp_path / (old.decode() + ".bvh")
+    src.write_bytes(sample.read_bytes())
+    good = tmp_path / "good.mcd"
+    assert main(["encode", str(src), "-o", str(good), "-q"]) == 0
+    data = bytearray(good.read_bytes().replace(old, new))
+    data[20:24] = (zlib.crc32(bytes(data[24:])) & 0xFFFFFFFF).to_bytes(4, "little")
+    bad = tmp_path / "bad.mcd"
+    bad.write_bytes(bytes(data))
+    return bad
+
+
+@pytest.mark.parametrize("name", [b"../pw", b"/tmp/", b"a\\b:c", b"..", b"x\x1b[2J"])
+def test_clip_names_that_steer_a_path_are_refused(tmp_path, sample_paths, name):
+    """An asset could name a clip `../pw` and `decode -o out/` wrote `out/../pw.bvh`; the runtime
+    now refuses such an asset (validate, open) and decode writes nothing."""
+    from mocodec.runtime import Result, validate
+    old = b"abcdefghij"[:len(name)]
+    bad = _renamed_asset(tmp_path, sample_paths[2], old, name)
+    assert validate(bad.read_bytes()) == Result.MALFORMED
+    before = set(tmp_path.rglob("*"))
+    r = run("decode", str(bad), "-o", str(tmp_path / "out") + "/")
+    assert r.returncode == 1 and len(_error_lines(r.stderr)) == 1, r.stderr
+    assert set(tmp_path.rglob("*")) == before
+    info = run("info", str(bad))
+    assert info.returncode == 1 and "\x1b" not in info.stdout + info.stderr
+
+
+def test_info_prints_the_asset_s_own_text_with_escapes(tmp_path, sample_paths, monkeypatch, capsys):
+    """`info` printed META text raw: an escape sequence in it reached the terminal."""
+    import importlib
+    monkeypatch.setattr(importlib.import_module("mocodec.encode"), "__version__", "9\x1b[2J\x07")
+    out = tmp_path / "a.mcd"
+    assert main(["encode", str(sample_paths[2]), "-o", str(out), "-q"]) == 0
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "written by mocodec 9\\x1b[2J\\x07" in text and "\x1b" not in text and "\x07" not in text
+
+
+# ---------------------------------------------------- the real reason, not an internal error
+def test_zero_offsets_and_a_huge_tolerance_encode(tmp_path):
+    """All-zero offsets ended in 'float division by zero', `--tolerance 1e8` in an asset the
+    runtime refused ('asset is malformed'): both encode now, and the asset opens."""
+    from mocodec.runtime import Result, validate
+    bvh = tmp_path / "zero.bvh"
+    bvh.write_text("HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition "
+                   "Zrotation Xrotation Yrotation\n JOINT b\n {\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation "
+                   "Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 0 0\n  }\n }\n}\nMOTION\nFrames: 3\n"
+                   "Frame Time: 0.1\n0 0 0 0 0 0 0 0 0\n0 0 0 0 10 0 5 0 0\n0 0 0 0 20 0 10 0 0\n")
+    for codec in ("rma", "spline"):
+        r = run("encode", str(bvh), "-o", str(tmp_path / "z.mcd"), "--codec", codec)
+        assert r.returncode == 0, r.stderr
+        assert "the skeleton has no height" in r.stdout
+    for codec in ("rma", "spline"):
+        out = tmp_path / f"{codec}.mcd"
+        r = run("encode", str(bvh), "-o", str(out), "--codec", codec, "-t", "1e8", "-q")
+        assert r.returncode == 0, r.stderr
+        assert validate(out.read_bytes()) == Result.OK
+
+
+def test_the_help_text_s_option_examples_work(tmp_path, sample_paths):
+    """`-O block_shift=6`, the help's own example, failed on the default codec: every example
+    the help gives now names its codec and works, and an unknown setting names the list."""
+    import re
+    text = run("encode", "--help").stdout
+    examples = re.findall(r"-O (\w+=\w+) \(codec ([\w-]+)\)", " ".join(text.split()))
+    assert len(examples) >= 2, text
+    for option, codec in examples:
+        r = run("encode", str(sample_paths[2]), "-o", str(tmp_path / "x.mcd"), "--codec", codec,
+                "-O", option, "-q")
+        assert r.returncode == 0, (option, codec, r.stderr)
+    r = run("encode", str(sample_paths[2]), "-o", str(tmp_path / "x.mcd"), "-O", "block_shift=6")
+    assert r.returncode == 1 and "its settings:" in _error_lines(r.stderr)[0]
+
+
+def test_library_warnings_are_one_line_and_silent_under_quiet(tmp_path, sample_paths, monkeypatch, capsys):
+    """rma-pca printed scikit-learn's two-line warnings even under -q: a warning raised while a
+    command runs is one 'mocodec: warning:' line, and nothing under -q or --json."""
+    import importlib
+    import warnings
+    module = importlib.import_module("mocodec.encode")
+    original = module.encode_motions
+
+    def warning_encoder(*args, **kwargs):
+        warnings.warn("n_components=96 must be between 1 and\nmin(n_samples, n_features)", UserWarning)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(module, "encode_motions", warning_encoder)
+    out = str(tmp_path / "x.mcd")
+    assert main(["encode", str(sample_paths[2]), "-o", out, "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["encode", str(sample_paths[2]), "-o", out]) == 0
+    err = capsys.readouterr().err
+    assert "mocodec: warning: n_components=96 must be between 1 and\n" in err
+    assert "UserWarning" not in err and "warnings.warn" not in err
+
+
+def test_rma_pca_without_a_variance_states_its_promise(tmp_path, sample_paths, monkeypatch, capsys):
+    """`--codec rma-pca` without `--pca-variance` failed formatting its own promise line
+    ('unsupported format string passed to NoneType')."""
+    import importlib
+    from mocodec.encode import EncodeError
+
+    def stop(*args, **kwargs):
+        raise EncodeError("stopped after the promise line")
+
+    monkeypatch.setattr(importlib.import_module("mocodec.encode"), "encode_motions", stop)
+    assert main(["encode", str(sample_paths[2]), "-o", str(tmp_path / "x.mcd"), "--codec", "rma-pca"]) == 1
+    err = capsys.readouterr().err
+    assert "PCA keeping its default share of the variance" in err
+    assert "mocodec: error: stopped after the promise line" in err

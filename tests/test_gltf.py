@@ -257,3 +257,80 @@ def test_cli_reports_a_bad_gltf_in_one_line(tmp_path):
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("mocodec: error: ") and str(path) in lines[0], run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_only_regular_files_are_read_as_gltf_or_buffer(tmp_path):
+    """A FIFO blocked forever and /dev/zero grew without end: a glTF file or an external
+    buffer that is not a regular file is refused unread, naming it (run in a child process so a
+    regression hangs into a timeout, not the test run)."""
+    import os
+    path = _animated_arm().write(tmp_path / "ext.gltf", external=True)
+    path.with_suffix(".bin").unlink()
+    os.mkfifo(path.with_suffix(".bin"))
+    os.mkfifo(tmp_path / "pipe.gltf")
+    doc = json.loads(path.read_text())
+    doc["buffers"][0]["uri"] = "/dev/zero"
+    (tmp_path / "zero.gltf").write_text(json.dumps(doc))
+    code = ("import sys; from mocodec.io import read_gltf, GLTFError\n"
+            "for p in sys.argv[1:]:\n"
+            "    try: read_gltf(p)\n"
+            "    except GLTFError as e: print(e)\n")
+    names = [path, tmp_path / "pipe.gltf", tmp_path / "zero.gltf"]
+    r = subprocess.run([sys.executable, "-c", code, *map(str, names)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.stdout.splitlines() == [
+        f"{path}: buffer 0 (ext.bin): the buffer file: a FIFO, not a buffer file (only regular files "
+        "are read) (missing buffer)",
+        f"{tmp_path / 'pipe.gltf'}: a FIFO, not a glTF file (only regular files are read)",
+        f"{tmp_path / 'zero.gltf'}: buffer 0 (/dev/zero): the buffer file: a device, not a buffer file "
+        "(only regular files are read) (missing buffer)"], r.stderr
+
+
+def test_a_failed_gltf_write_leaves_the_previous_file(tmp_path, monkeypatch):
+    """glTF output went straight to the target: a full disk left half a file."""
+    import errno
+    import os
+    from mocodec.io.gltf_write import write_gltf
+    m, = read_gltf(_animated_arm().write(tmp_path / "a.gltf"), rate=4)
+    for name in ("out.glb", "out.gltf"):
+        out = tmp_path / name
+        out.write_bytes(b"previous")
+
+        def full(fd):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        monkeypatch.setattr(os, "fsync", full)
+        with pytest.raises(OSError, match="No space left"):
+            write_gltf(out, [m.skeleton], [(0, m, 0.0)])
+        assert out.read_bytes() == b"previous"
+        monkeypatch.undo()
+        write_gltf(out, [m.skeleton], [(0, m, 0.0)])
+        back, = read_gltf(out, rate=4)
+        assert back.frame_count == m.frame_count
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gltf", "out.glb", "out.gltf"]
+
+
+def test_format_limits_are_checked_before_resampling(tmp_path):
+    """Keys a million seconds apart were resampled into (frames, nodes) arrays of gigabytes
+    before any limit; a skeleton of more than 1,024 nodes was refused only by the encoder."""
+    import tracemalloc
+    doc = arm()
+    doc.animation("long", [(2, "rotation", np.array([0.0, 1e6]), quat_z([0, 90]), "LINEAR")])
+    path = doc.write(tmp_path / "long.gltf")
+    tracemalloc.start()
+    try:
+        with pytest.raises(GLTFError) as info:
+            read_gltf(path, rate=60)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert str(info.value) == (f"{path}: animation 0: keys from 0 s to 1e+06 s at 60 Hz: 60,000,001 frames; "
+                               "the format allows at most 16,777,216 per clip")
+    assert peak < 50 << 20
+    wide = Doc()
+    parent = None
+    for i in range(1100):
+        parent = wide.node(f"n{i}", parent, translation=[0, 1, 0])
+    wide.animation("a", [(1099, "rotation", np.array([0.0, 1.0]), quat_z([0, 10]), "LINEAR")])
+    with pytest.raises(GLTFError, match=r"nodes: 1,10\d nodes to animate .* at most 1,024"):
+        read_gltf(wide.write(tmp_path / "wide.gltf"))

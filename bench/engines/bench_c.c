@@ -25,7 +25,6 @@ int main(int argc, char **argv) {
     mcd_clip_info info;
     mcd_transform pose[256];
     void *scratch;
-    size_t need = 0;
     long n, i;
     int round;
     double best = 1e30, sink = 0;
@@ -39,11 +38,7 @@ int main(int argc, char **argv) {
     bytes = malloc((size_t)size);
     if (fread(bytes, 1, (size_t)size, f) != (size_t)size) return 2;
     fclose(f);
-    if (mcd_resident_size(bytes, (size_t)size, 0, &need) != MCD_OK || need != 0) {
-        fprintf(stderr, "bench_c: expects an asset sampled in place (spline)\n");
-        return 2;
-    }
-    if (mcd_open(bytes, (size_t)size, 0, NULL, 0, &asset) != MCD_OK) return 2;
+    if (mcd_open(bytes, (size_t)size, 0, &asset) != MCD_OK) return 2;
     scratch = malloc(mcd_scratch_size(&asset));
     mcd_scratch_init(&asset, scratch, mcd_scratch_size(&asset));
     mcd_get_clip_info(&asset, 0, &info);

@@ -27,7 +27,7 @@ func _init():
 	var path = "res://data/bench.mcd"
 	var f = File.new()
 	f.open(path, File.READ)
-	var anim = load("res://mocodec_animation.gdns").new()
+	var anim = load("res://addons/mocodec/mocodec_animation.gdns").new()
 	if anim.load_bytes(f.get_buffer(f.get_len())) != 0:
 		print("bench load failed")
 		quit(1)

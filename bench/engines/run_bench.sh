@@ -8,13 +8,13 @@ source "$HERE/../../bindings/common.sh"
 OUT="$MCD_REPO/bench/out/engines"
 mkdir -p "$OUT"
 N="${BENCH_SAMPLES:-200000}"
-ASSET="$MCD_REPO/tests/golden/v1/spline_09_11.mcd"
+ASSET="${MCD_GOLDEN_DIR:-$MCD_REPO/tests/golden/v2}/spline_09_11.mcd"
 
 lib="$(mcd_shared_lib)"
 libdir="$(dirname "$lib")"
 ${CC:-cc} -std=c99 -O2 -I"$MCD_RUNTIME/include" "$HERE/bench_c.c" -L"$libdir" -lmocodec -Wl,-rpath,"$libdir" -o "$OUT/bench_c"
 
-mcs -langversion:7.2 -unsafe -nologo -optimize+ -target:library -out:"$OUT/Mocodec.dll" "$MCD_REPO"/bindings/csharp/Mocodec/*.cs
+mcs -langversion:7.2 -unsafe -nologo -optimize+ -target:library -out:"$OUT/Mocodec.dll" "$MCD_REPO"/unity_package/Runtime/Core/*.cs
 mcs -langversion:7.2 -nologo -optimize+ -out:"$OUT/Bench.exe" -r:"$OUT/Mocodec.dll" "$HERE/Bench.cs"
 
 project="$MCD_REPO/bindings/godot/godot3/project"

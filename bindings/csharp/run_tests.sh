@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Compiles the C# core (bindings/csharp/Mocodec) and the NUnit tests that the Unity package
-# ships (unity_package/Tests/Editor) with mono's mcs, runs them with nunit-console 2.6 against
+# Compiles the C# core (unity_package/Runtime/Core: one copy, used by Unity and by any .NET
+# engine) and the NUnit tests that the Unity package ships (unity_package/Tests/Editor) with mono's mcs, runs them with nunit-console 2.6 against
 # the real native runtime and assets encoded now, and prints "N passed, N failed".
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
@@ -24,7 +24,7 @@ ${CC:-cc} -std=c99 -I"$MCD_RUNTIME/include" "$HERE/abi_layout.c" -o "$OUT/abi_la
 
 # C# 7.2 is the newest that mcs accepts and what the issue promises Unity users.
 MCS=(mcs -langversion:7.2 -unsafe -warnaserror+ -nologo)
-"${MCS[@]}" -target:library -out:"$OUT/Mocodec.dll" "$HERE"/Mocodec/*.cs
+"${MCS[@]}" -target:library -out:"$OUT/Mocodec.dll" "$MCD_REPO"/unity_package/Runtime/Core/*.cs
 "${MCS[@]}" -target:library -out:"$OUT/Mocodec.Tests.dll" -r:"$OUT/Mocodec.dll" -r:"$NUNIT_FRAMEWORK" \
     "$MCD_REPO"/unity_package/Tests/Editor/*.cs
 cp "$NUNIT_FRAMEWORK" "$OUT/"

@@ -2,21 +2,28 @@
 
 Every error a user can cause (a bad BVH, a tolerance that cannot be met, a corrupted asset)
 is printed as one line starting with ``mocodec: error:`` and exits with status 1; usage
-errors exit with 2. Set ``MOCODEC_DEBUG=1`` to see tracebacks.
+errors exit with 2; Ctrl-C exits with 130 and SIGTERM with 143. Every file is written
+atomically (:mod:`mocodec.output`), never over one of the command's inputs, and names and paths
+from files are printed with escapes for anything a terminal would act on. Set
+``MOCODEC_DEBUG=1`` to see tracebacks.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from . import __version__, codecs
+from .limits import clip_name_problem, printable
+from .output import check_output, write_atomic
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM
 
@@ -50,28 +57,31 @@ class CliError(Exception):
     """A failure to report as one line."""
 
 
+class Terminated(BaseException):
+    """SIGTERM: unwinds like Ctrl-C, so no temporary file is left behind."""
+
+
 # ----------------------------------------------------------------------------- helpers
 def _progress(total: int, enabled: bool):
-    """A progress callback for multi-clip work: a bar on a terminal, a line per clip
-    otherwise (logs stay readable)."""
+    """A progress callback for multi-clip work: a bar on a terminal (clips done / total, time,
+    ETA, the last clip done), a line per clip otherwise (logs stay readable)."""
     done = [0]
     started = time.perf_counter()
-    tty = sys.stderr.isatty()
+    bar = None
+    if enabled and total >= 2 and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, unit="clip", file=sys.stderr, dynamic_ncols=True)
 
     def step(name: str) -> None:
         done[0] += 1
-        if not enabled or total < 2:
-            return
-        elapsed = time.perf_counter() - started
-        if tty:
-            width = 24
-            filled = int(width * done[0] / total)
-            bar = "#" * filled + "." * (width - filled)
-            end = "\n" if done[0] == total else ""
-            print(f"\r  [{bar}] {done[0]}/{total} {name:<16.16s} {elapsed:6.1f}s", end=end,
-                  file=sys.stderr, flush=True)
-        else:
-            print(f"  [{done[0]}/{total}] {name} ({elapsed:.1f}s)", file=sys.stderr, flush=True)
+        if bar is not None:
+            bar.set_postfix_str(printable(name), refresh=False)
+            bar.update(1)
+            if done[0] == total:
+                bar.close()
+        elif enabled and total >= 2:
+            print(f"  [{done[0]}/{total}] {printable(name)} ({time.perf_counter() - started:.1f}s)", file=sys.stderr, flush=True)
 
     return step
 
@@ -82,11 +92,11 @@ def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
     try:
         return expand(inputs)
     except InputError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(printable(str(exc))) from None
 
 
 def _warn(message: str) -> None:
-    print(f"mocodec: warning: {message}", file=sys.stderr)
+    print(f"mocodec: warning: {printable(message)}", file=sys.stderr)
 
 
 def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
@@ -101,7 +111,7 @@ def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
         for m, u in zip(motions, units):
             described.setdefault(u.describe(), []).append(m.name)
         for text, clips in described.items():
-            which = clips[0] if len(clips) == 1 else f"{len(clips)} clips"
+            which = printable(clips[0]) if len(clips) == 1 else f"{len(clips)} clips"
             print(f"{which}: {text}", file=sys.stderr)
     return motions, units
 
@@ -141,24 +151,38 @@ def _codec_choice(args: argparse.Namespace) -> str:
     return "rma-pca"
 
 
-def _encode(args: argparse.Namespace):
+def _encode(args: argparse.Namespace, paths: list[Path] | None = None):
     from .encode import encode_motions
     from .tolerance import Tolerance
 
     quiet = getattr(args, "quiet", False)
-    paths = _expand_inputs(args.inputs)
+    paths = paths or _expand_inputs(args.inputs)
     motions, units = _load(paths, args, quiet or getattr(args, "json", False))
     tolerance = Tolerance(args.tolerance, args.effector_tolerance)
     codec = _codec_choice(args)
     if not quiet and not getattr(args, "json", False):
         eff = f", end effectors {args.effector_tolerance} cm" if args.effector_tolerance else ""
-        promise = (f"PCA keeping {args.pca_variance:g} of the variance (no error bound: the error "
-                   "reached is reported)") if codec == "rma-pca" else f"tolerance {args.tolerance} cm{eff}"
+        variance = _codec_options(args).get("variance")
+        promise = (f"PCA keeping {'its default share' if variance is None else f'{variance:g}'} of the "
+                   "variance (no error bound: the error reached is reported)") if codec == "rma-pca" \
+            else f"tolerance {args.tolerance} cm{eff}"
         print(f"encoding {len(motions)} clip(s) with codec {codec!r}, {promise}", file=sys.stderr)
     progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
-    result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
-                            contacts=bool(getattr(args, "contacts", False)))
+    with _runner(args) as runner:
+        result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
+                                contacts=bool(getattr(args, "contacts", False)), runner=runner)
     return motions, result
+
+
+def _runner(args: argparse.Namespace):
+    """Where the clips are encoded: ``--jobs``, ``--scheduler``, ``--cache`` (mocodec.bake)."""
+    from .bake import make_runner
+
+    try:
+        return make_runner(getattr(args, "jobs", None), getattr(args, "scheduler", None),
+                           getattr(args, "cache", None))
+    except (ValueError, OSError) as exc:
+        raise CliError(str(exc)) from None
 
 
 def _fmt_int(n: float) -> str:
@@ -179,7 +203,8 @@ def _summary_lines(result) -> list[str]:
         f"ratio: {size.ratio_bvh:.1f}:1 vs the source's float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
         f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
         f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
-        f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
+        f"mean {err['mean_cm']:.4f}   " + (f"(max {err['max_pct_height']:.3f} % of height)"
+                                          if err["max_pct_height"] is not None else "(the skeleton has no height)"),
         f"encode time: {result.encode_seconds:.1f} s",
         *result.notes,
     ]
@@ -188,7 +213,7 @@ def _summary_lines(result) -> list[str]:
 def _clip_table(result) -> list[str]:
     rows = [f"  {'clip':<14} {'frames':>7} {'bytes':>9} {'max cm':>8} {'p99 cm':>8} {'mean cm':>8}"]
     for c in result.clips:
-        rows.append(f"  {c.name:<14} {c.frames:>7} {c.stats.get('payload_bytes', 0):>9,} "
+        rows.append(f"  {printable(c.name):<14} {c.frames:>7} {c.stats.get('payload_bytes', 0):>9,} "
                     f"{c.error.max_cm:>8.4f} {c.error.p99_cm:>8.4f} {c.error.mean_cm:>8.4f}")
     return rows
 
@@ -203,7 +228,7 @@ def _joint_table(motions, result) -> list[str]:
     mean = np.average([c.error.per_node_mean_cm for c in result.clips], axis=0, weights=frames)
     rows = [f"  {'joint':<20} {'max cm':>8} {'mean cm':>8}"]
     for i, n in enumerate(names):
-        rows.append(f"  {n:<20} {mx[i]:>8.4f} {mean[i]:>8.4f}")
+        rows.append(f"  {printable(n):<20} {mx[i]:>8.4f} {mean[i]:>8.4f}")
     return rows
 
 
@@ -229,13 +254,14 @@ def _result_json(result) -> dict[str, Any]:
 
 # ----------------------------------------------------------------------------- commands
 def cmd_encode(args: argparse.Namespace) -> int:
-    _, result = _encode(args)
-    out = Path(args.output)
-    out.write_bytes(result.asset)
+    paths = _expand_inputs(args.inputs)
+    out = check_output(args.output, paths)
+    _, result = _encode(args, paths)
+    write_atomic(out, result.asset)
     if args.json:
         print(json.dumps(_result_json(result), indent=2))
     elif not args.quiet:
-        print(f"wrote {out}")
+        print(f"wrote {printable(str(out))}")
         print("\n".join(_summary_lines(result)))
     return 0
 
@@ -254,11 +280,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise CliError("--sweep tolerances must be positive centimetres")
     plot = Path(args.plot or "sweep.html")
     if plot.suffix.lower() not in (".html", ".png"):
-        raise CliError(f"{plot}: --plot writes .html or .png")
+        raise CliError(f"{printable(str(plot))}: --plot writes .html or .png")
     paths = _expand_inputs(args.inputs)
+    plot = check_output(plot, paths)
     motions, units = _load(paths, args, args.quiet or args.json)
     progress = _progress(len(names) * len(args.sweep), not args.quiet and not args.json)
-    points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress)
+    with _runner(args) as runner:
+        points = run_sweep(motions, units, names, args.sweep, _codec_options(args), progress, runner)
     frames = sum(m.frame_count for m in motions)
     description = (f"{len(motions)} clip(s), {frames:,} frames ({', '.join(m.name for m in motions[:6])}"
                    f"{', ...' if len(motions) > 6 else ''}); codecs {', '.join(names)}; tolerances "
@@ -266,7 +294,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if plot.suffix.lower() == ".png":
         sweep_png(points, description, plot)
     else:
-        plot.write_text(sweep_html(points, description), encoding="utf-8")
+        write_atomic(plot, sweep_html(points, description))
     if args.json:
         print(json.dumps({"plot": str(plot), "points": points_json(points)}, indent=2))
         return 0
@@ -277,7 +305,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         else:
             print(f"  {p.codec:<12} {p.tolerance_cm:>7g} {p.asset_bytes:>10,} {p.ratio_bvh:>7.1f} "
                   f"{p.max_cm:>8.4f} {p.p99_cm:>8.4f} {p.mean_cm:>8.4f}")
-    print(f"wrote {plot}")
+    print(f"wrote {printable(str(plot))}")
     return 0
 
 
@@ -286,9 +314,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return cmd_sweep(args)
     if args.codecs or args.plot:
         raise CliError("--codecs and --plot go with --sweep")
-    motions, result = _encode(args)
-    if args.output:
-        Path(args.output).write_bytes(result.asset)
+    paths = _expand_inputs(args.inputs)
+    out = check_output(args.output, paths) if args.output else None
+    motions, result = _encode(args, paths)
+    if out is not None:
+        write_atomic(out, result.asset)
     if args.json:
         data = _result_json(result)
         if all(m.skeleton.names == motions[0].skeleton.names for m in motions):
@@ -317,19 +347,23 @@ def cmd_decode(args: argparse.Namespace) -> int:
     clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
     out = Path(args.output)
     if out.suffix.lower() in (".glb", ".gltf"):
-        write_asset_gltf(data, out, [c.index for c in clips])
+        write_asset_gltf(data, check_output(out, [args.asset]), [c.index for c in clips])
         if not args.quiet:
-            print(f"wrote {out} ({len(clips)} clip(s) as glTF animations, decoded by the C runtime)")
+            print(f"wrote {printable(str(out))} ({len(clips)} clip(s) as glTF animations, decoded by the C runtime)")
         return 0
-    if len(clips) > 1:
-        if out.suffix.lower() == ".bvh":
-            raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
+    # -o DIR/ (or an existing folder, or several clips): one file per clip, named after it.
+    folder = out.is_dir() or args.output.endswith(("/", os.sep)) or len(clips) > 1
+    # The runtime refuses clip names that steer a path; checked again where they become one.
+    for c in clips:
+        if folder and clip_name_problem(c.name):
+            raise CliError(f"{printable(args.asset)}: {clip_name_problem(c.name)}: not written as a file name")
+    if len(clips) > 1 and out.suffix.lower() == ".bvh" and not out.is_dir():
+        raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
+    if folder and out.exists() and not out.is_dir():
+        raise CliError(f"{printable(str(out))}: not a folder (the asset holds {len(clips)} clips)")
+    targets = [check_output(out / f"{c.name}.bvh" if folder else out, [args.asset]) for c in clips]
+    if folder:
         out.mkdir(parents=True, exist_ok=True)
-        targets = [out / f"{c.name}.bvh" for c in clips]
-    else:
-        if out.is_dir():
-            out = out / f"{clips[0].name}.bvh"
-        targets = [out]
     progress = _progress(len(clips), not args.quiet)
     for c, target in zip(clips, targets):
         motion = decode_clip(asset, c.index)
@@ -340,14 +374,16 @@ def cmd_decode(args: argparse.Namespace) -> int:
         write_bvh(motion, target, precision=args.precision)
         progress(c.name)
         if not args.quiet:
-            print(f"wrote {target} ({c.frame_count} frames, decoded by the C runtime)")
+            print(f"wrote {printable(str(target))} ({c.frame_count} frames, decoded by the C runtime)")
     return 0
 
 
 def _read_asset(path: str) -> bytes:
     p = Path(path)
     if not p.exists():
-        raise CliError(f"{p}: no such file")
+        raise CliError(f"{printable(str(p))}: no such file")
+    if not p.is_file():
+        raise CliError(f"{printable(str(p))}: not a regular file")
     return p.read_bytes()
 
 
@@ -384,20 +420,22 @@ def cmd_info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
-    print(f"{info['file']}: mocodec asset, format {info['format']}, {len(data):,} bytes, {status.name.lower()}")
+    print(f"{printable(info['file'])}: mocodec asset, format {info['format']}, {len(data):,} bytes, "
+          f"{status.name.lower()}")
     if info["encoder"]:
-        print(f"  written by {info['encoder']}, settings {json.dumps(info['settings'])}")
+        # META is the asset's own text: printed with escapes (JSON's, and printable's).
+        print(f"  written by {printable(str(info['encoder']))}, settings {json.dumps(info['settings'])}")
     print(f"  memory to sample: the asset itself ({len(data):,} B, sampled in place) + "
           f"{info['scratch_bytes']:,} B scratch per playing instance")
     if info["ratio_bvh"]:
         print(f"  ratio {info['ratio_bvh']:.1f}:1 vs the source's float32 channels")
-    print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))
+    print("  sections: " + ", ".join(f"{printable(s['kind'])} {s['bytes']:,} B" for s in info["sections"]))
     for i, s in enumerate(info["skeletons"]):
         print(f"  skeleton {i}: {s['nodes']} nodes, {s['cm_per_unit']:g} cm per unit")
     print(f"  {'clip':<16} {'codec':<8} {'frames':>7} {'fps':>8} {'seconds':>8} {'skel':>4} {'max cm':>8}")
     for c in clips:
         err = f"{c['max_error_cm']:.4f}" if c["max_error_cm"] is not None else "-"
-        print(f"  {c['name']:<16} {c['codec']:<8} {c['frames']:>7} {c['frame_rate']:>8.3f} "
+        print(f"  {printable(c['name']):<16} {c['codec']:<8} {c['frames']:>7} {c['frame_rate']:>8.3f} "
               f"{c['duration_s']:>8.3f} {c['skeleton']:>4} {err:>8}")
     return 0
 
@@ -413,6 +451,8 @@ def cmd_view(args: argparse.Namespace) -> int:
     from .view import build_page, match_originals, read_motions, serve_page
 
     data = _read_asset(args.asset)
+    out = None if args.serve else check_output(args.output or Path(args.asset).with_suffix(".html"),
+                                               [args.asset, *(args.original or [])])
     originals = []
     status = validate(data)
     if status != Result.OK:
@@ -427,11 +467,10 @@ def cmd_view(args: argparse.Namespace) -> int:
     if args.serve:
         serve_page(html, args.port)
         return 0
-    out = Path(args.output) if args.output else Path(args.asset).with_suffix(".html")
-    out.write_text(html, encoding="utf-8")
+    write_atomic(out, html)
     if not args.quiet:
         compared = f"{len(originals)} of {len(clips)} clips compared with an original" if status == Result.OK else "no clip shown"
-        print(f"wrote {out} ({len(html.encode()):,} bytes, opens with no network; {compared})")
+        print(f"wrote {printable(str(out))} ({len(html.encode()):,} bytes, opens with no network; {compared})")
     return 0
 
 
@@ -445,7 +484,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
                             effector_tolerance=None, units=None, cm_per_unit=None, option=None,
                             quiet=False, json=False)
     motions, result = _encode(ns)
-    asset_path.write_bytes(result.asset)
+    write_atomic(asset_path, result.asset)
     print(f"encoded {len(motions)} sample clips ({samples}) -> {asset_path}")
     print("\n".join(_summary_lines(result)))
     print("\nper clip:")
@@ -490,11 +529,21 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
                         "spacing when regular, subdivided up to 24 Hz, else 60); errors are measured "
                         "against the source's own interpolation at those times")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
-                   help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
+                   help="a codec setting, e.g. -O key_grid=1 (codec rma) or -O block_shift=6 (codec "
+                        "spline); values are JSON; an unknown setting is named with the codec's list")
     p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
                    help="store foot contact trajectories that the runtime restores by IK "
                         "(MCD_SAMPLE_CONTACTS); errors are measured with them applied "
                         "(default: off)")
+    p.add_argument("-j", "--jobs", type=int, default=None, metavar="N",
+                   help="clips encoded at once, each in a process of its own (default: one per "
+                        "core; 1: one after the other in this process); the asset is the same bytes")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="encode the clips on a running Dask cluster, e.g. tcp://host:8786 (needs "
+                        "pip install 'mocodec[cluster]' here and on the workers; docs/CLUSTER.md)")
+    p.add_argument("--cache", metavar="DIR",
+                   help="keep each encoded clip in this folder and reuse it while the clip, the "
+                        "settings and the encoder are unchanged: a re-bake encodes changed clips only")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
@@ -583,16 +632,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    def terminate(signum, frame):
+        raise Terminated()
+
     try:
-        return args.func(args)
+        previous = signal.signal(signal.SIGTERM, terminate)
+    except ValueError:  # not the main thread (main() called from a thread): no handler
+        previous = None
+    try:
+        with warnings.catch_warnings():
+            # Library warnings (numpy, scikit-learn) are not the user's business under -q, and
+            # otherwise one line each, not Python's two-line form.
+            if getattr(args, "quiet", False) or getattr(args, "json", False):
+                warnings.simplefilter("ignore")
+            else:
+                warnings.showwarning = _one_line_warning
+            return args.func(args)
     except KeyboardInterrupt:
-        print("mocodec: interrupted", file=sys.stderr)
+        print("mocodec: interrupted; no file was changed by the unfinished step", file=sys.stderr)
         return 130
+    except Terminated:
+        print("mocodec: terminated; no file was changed by the unfinished step", file=sys.stderr)
+        return 143
     except Exception as exc:  # one line for the user; the traceback on request
         if os.environ.get("MOCODEC_DEBUG"):
             raise
         print(f"mocodec: error: {_describe(exc)}", file=sys.stderr)
         return 1
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    text = str(message).splitlines()[0] if str(message) else category.__name__
+    print(f"mocodec: warning: {printable(text)}", file=sys.stderr)
 
 
 def _describe(exc: Exception) -> str:
@@ -601,9 +675,11 @@ def _describe(exc: Exception) -> str:
     if isinstance(exc, (CliError, BVHError)):
         return str(exc)
     if isinstance(exc, OSError) and exc.filename:
-        return f"{exc.filename}: {exc.strerror}"
+        return f"{printable(str(exc.filename))}: {exc.strerror}"
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"cannot write or read a file: {exc.strerror}"
     text = str(exc) or type(exc).__name__
-    return text.splitlines()[0] if text else type(exc).__name__
+    return printable(text.splitlines()[0]) if text else type(exc).__name__
 
 
 if __name__ == "__main__":

@@ -6,13 +6,14 @@ and reports sizes and errors. A tolerance that is not met is an error, never a s
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, codecs
+from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
@@ -21,6 +22,7 @@ from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
+    from .bake import Runner
     from .runtime import Asset
     from .units import UnitsChoice
 
@@ -68,19 +70,39 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
     return b.build()
 
 
+class RuntimeCheck:
+    """``check(i, payload, prefix=b"")``: clip ``i``'s world error (F, N) in file units, decoded
+    by the C runtime from a one-clip asset. It pickles without its cached world positions, and
+    :meth:`one_clip` is the check of one clip alone, small enough to send to a worker process."""
+
+    def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
+        from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
+
+        self.motions, self.cm_per_unit, self.codec = list(motions), list(cm_per_unit), codec
+        self._originals: dict[int, np.ndarray] = {}
+
+    def __call__(self, i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
+        from .runtime import Asset, decode_world
+
+        if i not in self._originals:
+            self._originals[i] = motion_world(self.motions[i])[1]
+        data = _single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix)
+        _, pos = decode_world(Asset(data), 0)
+        return np.linalg.norm(pos - self._originals[i], axis=-1)
+
+    def one_clip(self, i: int, prefix: bytes = b"") -> Callable[[bytes], np.ndarray]:
+        """``check(payload)`` of clip ``i`` alone."""
+        return functools.partial(RuntimeCheck([self.motions[i]], [self.cm_per_unit[i]], self.codec), 0,
+                                 prefix=prefix)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_originals": {}}
+
+
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
-    decoded by the C runtime from a one-clip asset."""
-    from .runtime import Asset, decode_world  # the binding, needed only once encoding runs
-
-    originals = [motion_world(m)[1] for m in motions]
-
-    def check(i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
-        data = _single_clip_asset(motions[i], cm_per_unit[i], codec, payload, prefix)
-        _, pos = decode_world(Asset(data), 0)
-        return np.linalg.norm(pos - originals[i], axis=-1)
-
-    return check
+    decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`)."""
+    return RuntimeCheck(motions, cm_per_unit, codec)
 
 
 def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsChoice]",
@@ -109,26 +131,33 @@ def encode_motions(
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
     contacts: bool = False,
+    runner: "Runner | None" = None,
 ) -> EncodeResult:
     """Encode ``motions`` (one clip each) into one asset and measure it through the runtime.
 
     ``contacts`` adds foot contact trajectories (a ``CNTC`` section, :mod:`mocodec.contacts`)
-    and measures every error with them applied by the runtime's IK.
+    and measures every error with them applied by the runtime's IK. ``runner`` encodes the
+    clips (local processes, a Dask cluster, a cache: :func:`mocodec.bake.make_runner`; None:
+    one after the other in this process); the asset is the same bytes either way.
 
-    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip.
+    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip,
+    :class:`~mocodec.limits.LimitError` when a motion is outside the format's limits.
     """
     if not motions:
         raise EncodeError("nothing to encode")
+    if len(motions) > limits.MAX_CLIPS:
+        raise EncodeError(f"{len(motions):,} clips; an asset holds at most {limits.MAX_CLIPS:,}")
     tolerance = tolerance or Tolerance(DEFAULT_TOLERANCE_CM)
     for m in motions:
         m.validate()
+        limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
     entry = codecs.get(codec)
     from .load import sampling_notes
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
     check = make_check(motions, cm, codec)
     try:
-        out = entry.encode(motions, cm, tolerance, check, options, progress)
+        out = entry.encode(motions, cm, tolerance, check, options, progress, runner)
     except ToleranceNotMet as exc:
         raise EncodeError(f"cannot meet the tolerance: {exc}") from None
     builder = AssetBuilder()

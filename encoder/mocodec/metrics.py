@@ -42,18 +42,19 @@ class ErrorReport:
     """(F, N) error of every node on every frame."""
 
     @property
-    def max_pct_height(self) -> float:
-        return 100.0 * self.max_cm / self.height_cm
+    def max_pct_height(self) -> float | None:
+        """None for a skeleton without height (every rest offset zero)."""
+        return 100.0 * self.max_cm / self.height_cm if self.height_cm > 0 else None
 
     @property
-    def mean_pct_height(self) -> float:
-        return 100.0 * self.mean_cm / self.height_cm
+    def mean_pct_height(self) -> float | None:
+        return 100.0 * self.mean_cm / self.height_cm if self.height_cm > 0 else None
 
     def fraction_under(self, threshold_cm: float) -> float:
         """Fraction of (frame, node) samples with error <= threshold."""
         return float(np.mean(self.errors_cm <= threshold_cm))
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, float | None]:
         return {
             "max_cm": self.max_cm,
             "p99_cm": self.p99_cm,
@@ -141,9 +142,9 @@ class ErrorMetric:
         return worst * self.cm_per_unit
 
 
-def combine(reports: list[ErrorReport]) -> dict[str, float]:
+def combine(reports: list[ErrorReport]) -> dict[str, float | None]:
     """Set-level figures over several clips: max of maxima, p99 over all samples, mean of
-    per-clip means weighted by samples."""
+    per-clip means weighted by samples (``max_pct_height`` None when no clip has a height)."""
     all_err = np.concatenate([r.errors_cm.ravel() for r in reports])
     weights = np.array([r.samples for r in reports], dtype=np.float64)
     return {
@@ -151,7 +152,8 @@ def combine(reports: list[ErrorReport]) -> dict[str, float]:
         "p99_cm": float(np.percentile(all_err, 99)),
         "mean_cm": float(np.average([r.mean_cm for r in reports], weights=weights)),
         "shell_max_cm": float(max(r.shell_max_cm for r in reports)),
-        "max_pct_height": float(max(r.max_pct_height for r in reports)),
+        "max_pct_height": max((r.max_pct_height for r in reports if r.max_pct_height is not None),
+                              default=None),
     }
 
 
@@ -178,7 +180,7 @@ class SizeReport:
     def bytes_per_second(self) -> float:
         return self.asset_bytes / self.seconds
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, float | None]:
         return {
             "asset_bytes": self.asset_bytes,
             "raw_bvh_bytes": self.raw_bvh_bytes,

@@ -272,10 +272,9 @@ class Motion:
                 if code < 3:
                     trans[:, i, code] = channels[:, c]
             if rot_cols:
-                rot[:, i] = rotations.euler_to_quat(
-                    channels[:, rot_cols], skeleton.rotation_order(i)
-                )
-        rot = rotations.quat_make_continuous(rot, axis=0)
+                # Continuous per node: temporaries of one node's size, not the clip's.
+                rot[:, i] = rotations.quat_make_continuous(
+                    rotations.euler_to_quat(channels[:, rot_cols], skeleton.rotation_order(i)), axis=0)
         return cls(skeleton, rot, trans, float(frame_time), name, source_channels=channels)
 
     def to_channels(self, reference: np.ndarray | None = None) -> np.ndarray:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 MAX_BITS = 24
+MAX_STEP = 1e7  # the format's bound on every stored number (docs/FORMAT.md)
 
 
 @dataclass
@@ -73,8 +74,10 @@ class StepQuantizer:
     @classmethod
     def for_range(cls, lo: np.ndarray, hi: np.ndarray, step: np.ndarray) -> "StepQuantizer":
         """Quantizer with the given step (rounded to float32) for values within ``[lo, hi]``.
-        Raises ValueError when a value would need ``|q| > 2**24``."""
-        st = np.asarray(step, dtype=np.float32).astype(np.float64)
+        Raises ValueError when a value would need ``|q| > 2**30``. A step above the format's
+        bound on stored numbers (1e7) is lowered to it: with every value within +-1e7, a
+        smaller step only lowers the error (a huge tolerance asks for nothing finer)."""
+        st = np.minimum(np.asarray(step, dtype=np.float64), MAX_STEP).astype(np.float32).astype(np.float64)
         reach = np.maximum(np.abs(np.asarray(lo, dtype=np.float64)), np.abs(np.asarray(hi, dtype=np.float64)))
         if np.any(st <= 0) or np.any(reach / st >= cls.MAX_Q) or np.any(reach >= 1e7):
             raise ValueError(f"range {reach.max():.6g} needs more than 2**30 steps of {st.min():.3g}")

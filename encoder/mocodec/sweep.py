@@ -6,13 +6,17 @@ import html
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from .encode import EncodeError, encode_motions
+from .output import atomic_open
 from .metrics import combine
 from .motion import Motion
 from .tolerance import Tolerance
 from .units import UnitsChoice
+
+if TYPE_CHECKING:
+    from .bake import Runner
 
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 
@@ -34,13 +38,14 @@ class SweepPoint:
 
 def run_sweep(motions: list[Motion], units: list[UnitsChoice], codec_names: Sequence[str],
               tolerances: Sequence[float], options: dict | None = None,
-              progress: Callable[[str], None] | None = None) -> list[SweepPoint]:
-    """Encode ``motions`` with every codec at every tolerance and measure each asset."""
+              progress: Callable[[str], None] | None = None, runner: "Runner | None" = None) -> list[SweepPoint]:
+    """Encode ``motions`` with every codec at every tolerance and measure each asset (the clips
+    of each encoded by ``runner``, :mod:`mocodec.bake`; None: in this process)."""
     points = []
     for codec in codec_names:
         for tol in sorted(tolerances):
             try:
-                r = encode_motions(motions, units, codec, Tolerance(tol), options)
+                r = encode_motions(motions, units, codec, Tolerance(tol), options, runner=runner)
             except EncodeError as exc:
                 points.append(SweepPoint(codec, tol, failed=str(exc).splitlines()[0]))
             else:
@@ -167,5 +172,6 @@ def sweep_png(points: list[SweepPoint], description: str, path: Path) -> None:
         ax.legend()
     fig.suptitle(description, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with atomic_open(path, "wb") as f:
+        fig.savefig(f, dpi=120, format="png")
     plt.close(fig)

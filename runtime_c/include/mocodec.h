@@ -239,6 +239,129 @@ MCD_API mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_
                               uint32_t flags, mcd_transform* out_pose, uint32_t pose_capacity,
                               void* scratch);
 
+/* ---------------------------------------------------------------- retargeting (retarget.c)
+ *
+ * Poses of an asset skeleton onto a game's rig: its own bone names, hierarchy, rest (bind)
+ * transforms and proportions. mcd_retarget_init builds a map once per rig and skeleton into
+ * caller memory (mcd_retarget_size bytes); mcd_retarget_pose then turns each sampled local pose
+ * into the rig's local transforms without allocating, in a work buffer of the caller's
+ * (mcd_retarget_info.work_size bytes, one per thread). The map is read-only after init and
+ * holds no pointer into the asset or the rig description.
+ *
+ * Matching: the caller's pairs first (bone name -> node name, or NULL to leave a bone out),
+ * then equal names, then names equal once a namespace up to the last ':' or '|', ASCII case
+ * and the characters '_' '-' '.' ' ' are dropped ("mixamorig:Left_Arm" = "LeftArm"), when
+ * exactly one node matches so. Joints and end sites match by name; virtual points only by pair.
+ *
+ * Per matched bone (rig space = the frame the rig's root bones live in; S = space_rotation):
+ *   rotation     world(bone) = S world(node) world_rest(node)^-1 S^-1 A world_rest(bone): the
+ *                bone turns in rig space as its node turned from its rest in model space, so
+ *                an asset made from this very rig poses it exactly, and a rig with other rest
+ *                orientations shows the same motion. A is the identity, or with
+ *                MCD_RETARGET_MATCH_DIRECTIONS and a bone with exactly one matched child bone
+ *                whose node is below the bone's node, the shortest rotation turning the bone's
+ *                rest direction (towards that child) onto its node's: the world-space
+ *                directions of such bones follow the asset even when the rest poses differ
+ *                (A-pose against T-pose). Bones with several matched children (hips, chest)
+ *                keep A = identity, so the bones hanging off them stay where the rig has them.
+ *   translation  the motion root (a matched bone without a matched ancestor, normally the
+ *                hips) is placed where its node is: unit_scale S position(node); without
+ *                MCD_RETARGET_ROOT_MOTION only its component along up_axis moves (the two
+ *                others stay at its rest position). Every other matched bone keeps its rest
+ *                translation plus the node's displacement from the node's rest translation
+ *                (none for BVH joints: the rig keeps its own bone lengths). A bone flagged
+ *                MCD_RIG_BONE_KEEP_TRANSLATION always keeps its rest translation.
+ *   scale        rest scale(bone) x scale(node) / rest scale(node), per axis.
+ * An unmatched bone stays at its rest transform (and follows its parent).
+ *
+ * Retargeting onto a rig:
+ *
+ *     mcd_rig_bone bones[64];   // name, parent, flags, rest local transform of each rig bone
+ *     mcd_retarget_config config;
+ *     mcd_retarget_info rinfo;
+ *     size_t map_size;
+ *     mcd_retarget_config_default(&config);
+ *     config.unit_scale = 0.01f * cm_per_unit;   // a rig in metres
+ *     mcd_retarget_size(&asset, skeleton, bone_count, &map_size);
+ *     void* map = malloc(map_size);
+ *     if (mcd_retarget_init(&asset, skeleton, bones, bone_count, NULL, 0, &config, map, map_size,
+ *                           NULL) != MCD_OK) ...;
+ *     mcd_retarget_get_info(map, &rinfo);
+ *     void* work = malloc(rinfo.work_size);      // one per thread
+ *     mcd_transform rig_pose[64];
+ *     mcd_retarget_pose(map, pose, node_count, rig_pose, 64, work, rinfo.work_size);
+ */
+typedef struct mcd_rig_bone {
+    const char* name;   /* UTF-8, NUL-terminated, 1 ... 255 bytes, unique in the rig */
+    int32_t parent;     /* index of the parent bone, -1 for a root; parents come first */
+    uint32_t flags;     /* MCD_RIG_BONE_* */
+    mcd_transform rest; /* rest (bind) local transform, in the rig's space and units */
+} mcd_rig_bone;
+
+#define MCD_RIG_BONE_KEEP_TRANSLATION 0x1u /* always the rest translation, even as motion root */
+
+typedef struct mcd_retarget_pair {
+    const char* bone; /* a rig bone's name */
+    const char* node; /* the asset node (exact name) that drives it, or NULL: not driven */
+} mcd_retarget_pair;
+
+#define MCD_RETARGET_ROOT_MOTION 0x1u      /* the motion root travels; off: it moves along up_axis only */
+#define MCD_RETARGET_MATCH_DIRECTIONS 0x2u /* bone directions follow the asset's (see above) */
+
+typedef struct mcd_retarget_config {
+    uint32_t flags;          /* MCD_RETARGET_*; the default sets both */
+    uint32_t up_axis;        /* 0 x, 1 y, 2 z of rig space; default 1 */
+    float unit_scale;        /* rig units per asset unit, > 0; default 1 */
+    float space_rotation[4]; /* x y z w: asset model space -> rig space; default identity */
+} mcd_retarget_config;
+
+/* Where mcd_retarget_init found the problem its result names. */
+#define MCD_RETARGET_ISSUE_NONE 0u
+#define MCD_RETARGET_ISSUE_BONE 1u   /* bones[index] */
+#define MCD_RETARGET_ISSUE_PAIR 2u   /* pairs[index] */
+#define MCD_RETARGET_ISSUE_CONFIG 3u /* the config, the asset or the buffers */
+typedef struct mcd_retarget_issue {
+    uint32_t where; /* MCD_RETARGET_ISSUE_* */
+    uint32_t index;
+} mcd_retarget_issue;
+
+typedef struct mcd_retarget_info {
+    uint32_t bone_count;   /* rig bones: the transforms mcd_retarget_pose writes */
+    uint32_t node_count;   /* asset nodes: the pose it reads */
+    uint32_t matched;      /* bones driven by a node */
+    uint32_t work_size;    /* bytes of the work buffer mcd_retarget_pose needs */
+} mcd_retarget_info;
+
+MCD_API void mcd_retarget_config_default(mcd_retarget_config* out);
+/* Bytes of the map for `bone_count` rig bones and skeleton `skeleton` of the asset. */
+MCD_API mcd_result mcd_retarget_size(const mcd_asset* asset, uint32_t skeleton, uint32_t bone_count,
+                                     size_t* out_size);
+/*
+ * Build the map in `map` (8-byte aligned, at least mcd_retarget_size bytes). Every input is
+ * checked: MCD_ERROR_INVALID_ARGUMENT for a NULL pointer, a bad name, parent, rest transform
+ * (finite, |values| <= 1e7, unit rotation within 1e-3, |scale| >= 1e-6), config value or a
+ * second pair for one bone; MCD_ERROR_NOT_FOUND for a pair naming a bone or node that does not
+ * exist; MCD_ERROR_OUT_OF_RANGE for a bad skeleton index; MCD_ERROR_BUFFER_TOO_SMALL. The
+ * optional `out_issue` says which bone, pair or setting. Cost: bones x nodes name compares.
+ */
+MCD_API mcd_result mcd_retarget_init(const mcd_asset* asset, uint32_t skeleton, const mcd_rig_bone* bones,
+                                     uint32_t bone_count, const mcd_retarget_pair* pairs, uint32_t pair_count,
+                                     const mcd_retarget_config* config, void* map, size_t map_size,
+                                     mcd_retarget_issue* out_issue);
+MCD_API mcd_result mcd_retarget_get_info(const void* map, mcd_retarget_info* out);
+/* The asset node driving `bone`, or -1 when none does. */
+MCD_API mcd_result mcd_retarget_get_node(const void* map, uint32_t bone, int32_t* out_node);
+/*
+ * The rig's local transforms for a local pose of the map's skeleton (`node_count` = the
+ * skeleton's node count; rotations need not be exactly unit, e.g. after blending) into
+ * out[0 .. bone_count). Does not allocate. MCD_ERROR_INVALID_ARGUMENT for a map that is not
+ * one, a node_count other than the map's, a work buffer not 8-byte aligned, a non-finite
+ * value or a zero rotation; MCD_ERROR_BUFFER_TOO_SMALL when out_capacity < bone_count or the
+ * work buffer is smaller than mcd_retarget_info.work_size.
+ */
+MCD_API mcd_result mcd_retarget_pose(const void* map, const mcd_transform* pose, uint32_t node_count,
+                                     mcd_transform* out, uint32_t out_capacity, void* work, size_t work_size);
+
 #ifdef __cplusplus
 }
 #endif

@@ -5,6 +5,7 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include <stdlib.h>
+#include <string.h>
 
 #include "harness.h"
 
@@ -92,6 +93,51 @@ void test_no_allocation(void) {
             for (flags = 0; flags < 16u; ++flags) /* every flag combination, contacts too */
                 for (k = 0; k < 2u * ci.frame_count; k += 3u)
                     CHECK_RESULT(mcd_sample(&a, c, (float)k * 0.5f / ci.frame_rate - 0.1f, flags, pose, 1024, scratch), MCD_OK);
+        }
+        CHECK_MSG(g_allocator_calls == before, "%s: %lu allocator calls inside the runtime", f->path,
+                  g_allocator_calls - before);
+        /* retargeting skeleton 0 onto itself: init and pose */
+        {
+            mcd_skeleton_info si;
+            mcd_rig_bone* bones;
+            mcd_retarget_config cfg;
+            mcd_retarget_info info;
+            mcd_transform* rig_pose;
+            void *map, *work;
+            size_t map_size = 0;
+            uint32_t j;
+            mcd_get_skeleton_info(&a, 0, &si);
+            mcd_retarget_size(&a, 0, si.node_count, &map_size);
+            /* the caller's buffers, outside the count */
+            bones = (mcd_rig_bone*)malloc(si.node_count * sizeof *bones);
+            rig_pose = (mcd_transform*)malloc(si.node_count * sizeof *rig_pose);
+            map = malloc(map_size);
+            work = malloc(si.node_count * 2u * 256u);
+            before = g_allocator_calls;
+            for (j = 0; j < si.node_count && bones; ++j) {
+                mcd_get_node_info(&a, 0, j, &ni);
+                bones[j].name = ni.name;
+                bones[j].parent = ni.parent;
+                bones[j].flags = 0;
+                memcpy(bones[j].rest.rotation, ni.rest_rotation, sizeof ni.rest_rotation);
+                memcpy(bones[j].rest.translation, ni.rest_translation, sizeof ni.rest_translation);
+                memcpy(bones[j].rest.scale, ni.rest_scale, sizeof ni.rest_scale);
+            }
+            mcd_retarget_config_default(&cfg);
+            CHECK_RESULT(mcd_scratch_init(&a, scratch, size), MCD_OK);
+            CHECK_RESULT(mcd_retarget_init(&a, 0, bones, si.node_count, NULL, 0, &cfg, map, map_size, NULL), MCD_OK);
+            CHECK_RESULT(mcd_retarget_get_info(map, &info), MCD_OK);
+            CHECK(info.work_size <= si.node_count * 2u * 256u);
+            for (k = 0; k < 8u; ++k) {
+                CHECK_RESULT(mcd_sample(&a, 0, 0.1f * (float)k, 0, pose, 1024, scratch), MCD_OK);
+                CHECK_RESULT(mcd_retarget_pose(map, pose, si.node_count, rig_pose, si.node_count, work, info.work_size), MCD_OK);
+            }
+            CHECK_MSG(g_allocator_calls == before, "%s: %lu allocator calls inside retargeting", f->path, g_allocator_calls - before);
+            free(bones);
+            free(rig_pose);
+            free(map);
+            free(work);
+            before = g_allocator_calls;
         }
         CHECK_RESULT(mcd_validate(f->data, f->size - 1u, 0), MCD_ERROR_TRUNCATED); /* error paths too */
         CHECK_MSG(g_allocator_calls == before, "%s: %lu allocator calls inside the runtime", f->path,

@@ -9,9 +9,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifndef _WIN32 /* the read check of a prevalidated open needs fork and mprotect */
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#define MCD_HAVE_FORK 1
+#endif
 
 #include "harness.h"
 
@@ -317,6 +320,8 @@ static int container_section(const uint8_t* e) {
     return memcmp(e, "SKEL", 4) == 0 || memcmp(e, "CLIP", 4) == 0;
 }
 
+#ifdef MCD_HAVE_FORK
+
 /* Open `data` with `flags` and call every query, with every byte from `protect_from` on made
  * unreadable, in a child process; returns its wait status. `quiet` silences the child's
  * stderr (the crash a validating open must cause there). */
@@ -390,6 +395,7 @@ static void check_reads_no_payload(const mcd_golden* g) {
     status = open_in_child(d, g->file.size, first, 0, 1);
     CHECK_MSG(status != -1 && !exited_ok(status), "%s: a validating open did not read the payloads", g->file.path);
 }
+#endif
 
 /* Validated bytes whose payloads are then overwritten: a prevalidated open does not look at
  * them (and reports the same clips), a validating open refuses them. */
@@ -424,8 +430,13 @@ void test_prevalidated_open(void) {
     size_t n = mcd_test_load_golden(&g), i;
     for (i = 0; i < n; ++i) {
         check_ignores_payload(&g[i]);
+#ifdef MCD_HAVE_FORK
         check_reads_no_payload(&g[i]);
+#endif
     }
+#ifndef MCD_HAVE_FORK
+    printf("  prevalidated_open: NOT RUN here: the check that no payload byte is read (fork + mprotect) is POSIX only\n");
+#endif
     mcd_test_free_golden(g, n);
 }
 

@@ -1,9 +1,12 @@
 /*
- * Godot 3 binding of the mocodec runtime: a GDNative library with one NativeScript class,
- * MocodecAnimation (a Reference). It holds one opened asset, samples it into a pose buffer it
- * owns, and writes poses onto a Skeleton's bones. Every buffer is allocated when the asset is
- * loaded or a skeleton bound, never while sampling. Results are the runtime's codes (0 = OK);
- * a failure is also printed through Godot's error channel, GDScript having no exceptions.
+ * Godot 3 binding of the mocodec runtime: a GDNative library with one NativeScript tool class,
+ * MocodecAnimation (a Resource: its `data` property, the .mcd bytes, is saved with it, so the
+ * import plugin of addons/mocodec turns a .mcd into a .res that exports carry). It holds one
+ * opened asset, samples it into a pose buffer it owns, and poses a Skeleton through the
+ * runtime's retargeting (mcd_retarget_*: the Skeleton's own bone names, rests and proportions).
+ * Every buffer is allocated when the asset is loaded or a skeleton bound, never while sampling.
+ * Results are the runtime's codes (0 = OK); a failure is also printed through Godot's error
+ * channel, GDScript having no exceptions.
  *
  * Built against the godot_headers of the crates.io crate gdnative-sys 0.11.3; only the core
  * 1.0 and NativeScript 1.0 tables are used, which every Godot 3.x provides.
@@ -28,15 +31,17 @@ static const godot_gdnative_core_api_struct *core;
 static const godot_gdnative_ext_nativescript_api_struct *ns;
 
 /* Skeleton methods, resolved once at init; ptrcall passes ints as int64 in Godot 3. */
-static godot_method_bind *skel_find_bone, *skel_get_bone_rest, *skel_set_bone_pose;
+static godot_method_bind *skel_get_bone_count, *skel_get_bone_name, *skel_get_bone_parent, *skel_get_bone_rest,
+    *skel_set_bone_pose;
 
 typedef struct {
     mcd_engine_asset a;
-    /* the bound skeleton: node -> bone index (-1: no bone of that name), inverse bone rests */
+    int64_t result; /* of the last load */
+    godot_pool_byte_array data; /* the `data` property as set, returned by its getter */
+    /* the bound skeleton: the retargeting onto its bones, and their inverse rests (Godot 3
+     * composes a bone as parent * rest * pose, so the pose is rest^-1 * the rig's local) */
     godot_object *skeleton;
-    uint32_t skeleton_index;
-    uint32_t bound_nodes;
-    int64_t *bone_of_node;
+    mcd_engine_rig rig;
     godot_transform *inverse_rest;
 } instance;
 
@@ -49,15 +54,6 @@ static void release(void *p) {
     if (p) core->godot_free(p);
 }
 
-static void unbind(instance *self) {
-    release(self->bone_of_node);
-    release(self->inverse_rest);
-    self->bone_of_node = NULL;
-    self->inverse_rest = NULL;
-    self->skeleton = NULL;
-    self->bound_nodes = 0;
-}
-
 static void *engine_alloc(size_t n) {
     return core->godot_alloc((int)n);
 }
@@ -67,6 +63,13 @@ static void engine_free(void *p) {
 }
 
 static const mcd_engine_allocator godot_memory = {engine_alloc, engine_free};
+
+static void unbind(instance *self) {
+    release(self->inverse_rest);
+    self->inverse_rest = NULL;
+    self->skeleton = NULL;
+    mcd_engine_rig_close(&self->rig, &godot_memory);
+}
 
 static void close_asset(instance *self) {
     unbind(self);
@@ -124,24 +127,51 @@ static godot_transform to_transform(const mcd_transform *t) {
 /* ---- asset ---------------------------------------------------------------------------------- */
 
 
+/* Opens a copy of the bytes and keeps them as the `data` property. */
+static mcd_result load(instance *self, const godot_variant *value) {
+    godot_pool_byte_array_read_access *read;
+    mcd_result r;
+    unbind(self);
+    core->godot_pool_byte_array_destroy(&self->data);
+    self->data = core->godot_variant_as_pool_byte_array(value);
+    read = core->godot_pool_byte_array_read(&self->data);
+    r = mcd_engine_asset_load(&self->a, core->godot_pool_byte_array_read_access_ptr(read),
+                              (size_t)core->godot_pool_byte_array_size(&self->data), &godot_memory);
+    core->godot_pool_byte_array_read_access_destroy(read);
+    self->result = r;
+    return r;
+}
+
 /* load_bytes(bytes: PoolByteArray) -> int */
 static godot_variant m_load_bytes(godot_object *obj, void *md, void *ud, int argc, godot_variant **argv) {
-    instance *self = ud;
-    godot_pool_byte_array bytes;
-    godot_pool_byte_array_read_access *read;
     mcd_result r;
     (void)obj;
     (void)md;
     if (argc != 1) return v_int(MCD_ERROR_INVALID_ARGUMENT);
-    bytes = core->godot_variant_as_pool_byte_array(argv[0]);
-    read = core->godot_pool_byte_array_read(&bytes);
-    unbind(self);
-    r = mcd_engine_asset_load(&self->a, core->godot_pool_byte_array_read_access_ptr(read),
-                              (size_t)core->godot_pool_byte_array_size(&bytes), &godot_memory);
-    core->godot_pool_byte_array_read_access_destroy(read);
-    core->godot_pool_byte_array_destroy(&bytes);
+    r = load(ud, argv[0]);
     if (r != MCD_OK) report("MocodecAnimation.load_bytes", r);
     return v_int(r);
+}
+
+/* The `data` property: what a saved resource stores and a loaded one is opened from. */
+static void p_set_data(godot_object *obj, void *md, void *ud, godot_variant *value) {
+    mcd_result r;
+    (void)obj, (void)md;
+    r = load(ud, value);
+    if (r != MCD_OK) report("MocodecAnimation.data", r);
+}
+
+static godot_variant p_get_data(godot_object *obj, void *md, void *ud) {
+    godot_variant v;
+    (void)obj, (void)md;
+    core->godot_variant_new_pool_byte_array(&v, &((instance *)ud)->data);
+    return v;
+}
+
+/* get_result() -> int: the runtime's code for the bytes last set (0: a valid asset) */
+static godot_variant m_get_result(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
+    (void)o, (void)md, (void)argc, (void)argv;
+    return v_int(((instance *)ud)->result);
 }
 
 static godot_variant m_get_version(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
@@ -234,10 +264,11 @@ static godot_variant m_get_cm_per_unit(godot_object *o, void *md, void *ud, int 
     return v_real(info.cm_per_unit);
 }
 
-enum node_field { NODE_NAME, NODE_PARENT, NODE_REST };
+enum node_field { NODE_NAME, NODE_PARENT, NODE_KIND, NODE_REST };
 
 static godot_variant node_query(instance *self, int argc, godot_variant **argv, enum node_field f) {
     mcd_node_info info;
+    godot_variant v;
     mcd_result r = self->a.opened ? mcd_get_node_info(&self->a.asset, (uint32_t)arg_int(argc, argv, 0),
                                                     (uint32_t)arg_int(argc, argv, 1), &info)
                                 : MCD_ERROR_INVALID_ARGUMENT;
@@ -247,23 +278,28 @@ static godot_variant node_query(instance *self, int argc, godot_variant **argv, 
     }
     if (f == NODE_NAME) return v_utf8(info.name);
     if (f == NODE_PARENT) return v_int(info.parent);
-    return v_vector3(info.rest_offset);
+    if (f == NODE_KIND) return v_int(info.kind);
+    {
+        mcd_transform t;
+        godot_transform x;
+        memcpy(t.rotation, info.rest_rotation, sizeof t.rotation);
+        memcpy(t.translation, info.rest_translation, sizeof t.translation);
+        memcpy(t.scale, info.rest_scale, sizeof t.scale);
+        x = to_transform(&t);
+        core->godot_variant_new_transform(&v, &x);
+    }
+    return v;
 }
 
-static godot_variant m_get_node_name(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
-    (void)o, (void)md;
-    return node_query(ud, argc, argv, NODE_NAME);
-}
-
-static godot_variant m_get_node_parent(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
-    (void)o, (void)md;
-    return node_query(ud, argc, argv, NODE_PARENT);
-}
-
-static godot_variant m_get_node_rest_offset(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
-    (void)o, (void)md;
-    return node_query(ud, argc, argv, NODE_REST);
-}
+#define NODE_METHOD(fn, field)                                                                      \
+    static godot_variant fn(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) { \
+        (void)o, (void)md;                                                                          \
+        return node_query(ud, argc, argv, field);                                                   \
+    }
+NODE_METHOD(m_get_node_name, NODE_NAME)
+NODE_METHOD(m_get_node_parent, NODE_PARENT)
+NODE_METHOD(m_get_node_kind, NODE_KIND)
+NODE_METHOD(m_get_node_rest, NODE_REST)
 
 /* ---- sampling ------------------------------------------------------------------------------- */
 
@@ -284,81 +320,205 @@ static godot_variant m_sample(godot_object *o, void *md, void *ud, int argc, god
     return v_int(r);
 }
 
-static godot_variant m_get_pose_rotation(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
-    instance *self = ud;
+static const mcd_transform *pose_at(instance *self, int argc, godot_variant **argv) {
+    static const mcd_transform identity = {{0, 0, 0, 1}, {0, 0, 0}, {1, 1, 1}};
     int64_t i = arg_int(argc, argv, 0);
+    return self->a.opened && i >= 0 && i < (int64_t)self->a.asset.max_nodes ? &self->a.pose[i] : &identity;
+}
+
+static godot_variant m_get_pose_rotation(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
+    const float *r = pose_at(ud, argc, argv)->rotation;
     godot_quat q;
     godot_variant v;
     (void)o, (void)md;
-    if (!self->a.opened || i < 0 || i >= (int64_t)self->a.asset.max_nodes) {
-        core->godot_quat_new(&q, 0, 0, 0, 1);
-    } else {
-        const float *r = self->a.pose[i].rotation;
-        core->godot_quat_new(&q, r[0], r[1], r[2], r[3]);
-    }
+    core->godot_quat_new(&q, r[0], r[1], r[2], r[3]);
     core->godot_variant_new_quat(&v, &q);
     return v;
 }
 
 static godot_variant m_get_pose_translation(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
-    instance *self = ud;
-    int64_t i = arg_int(argc, argv, 0);
-    static const float zero[3] = {0, 0, 0};
     (void)o, (void)md;
-    if (!self->a.opened || i < 0 || i >= (int64_t)self->a.asset.max_nodes) return v_vector3(zero);
-    return v_vector3(self->a.pose[i].translation);
+    return v_vector3(pose_at(ud, argc, argv)->translation);
 }
 
-/* bind_skeleton(skeleton: Skeleton, skeleton_index: int) -> int: bones matched by name, or -1 */
+static godot_variant m_get_pose_scale(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
+    (void)o, (void)md;
+    return v_vector3(pose_at(ud, argc, argv)->scale);
+}
+
+/* ---- a Skeleton as the rig ------------------------------------------------------------------ */
+
+static mcd_transform from_transform(const godot_transform *x) {
+    mcd_transform t;
+    godot_basis b = core->godot_transform_get_basis(x), unit;
+    godot_vector3 o = core->godot_transform_get_origin(x), s = core->godot_basis_get_scale(&b);
+    double m[3][3];
+    int row, col;
+    unit = core->godot_basis_orthonormalized(&b); /* the rotation of a scaled basis */
+    for (row = 0; row < 3; row++) {
+        godot_vector3 r = core->godot_basis_get_row(&unit, row);
+        for (col = 0; col < 3; col++) m[row][col] = core->godot_vector3_get_axis(&r, (godot_vector3_axis)col);
+    }
+    mcd_engine_rotation_from_rows(m, t.rotation); /* the core 1.0 API has no Basis -> Quat */
+    t.translation[0] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_X);
+    t.translation[1] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_Y);
+    t.translation[2] = core->godot_vector3_get_axis(&o, GODOT_VECTOR3_AXIS_Z);
+    t.scale[0] = core->godot_vector3_get_axis(&s, GODOT_VECTOR3_AXIS_X);
+    t.scale[1] = core->godot_vector3_get_axis(&s, GODOT_VECTOR3_AXIS_Y);
+    t.scale[2] = core->godot_vector3_get_axis(&s, GODOT_VECTOR3_AXIS_Z);
+    return t;
+}
+
+/* A transform applied as scale, then rotation, then translation: basis = R * diag(scale). */
+static godot_transform to_transform_scaled(const mcd_transform *t) {
+    godot_transform x = to_transform(t);
+    godot_basis r, sb, rs;
+    godot_vector3 o, row[3];
+    if (t->scale[0] == 1.0f && t->scale[1] == 1.0f && t->scale[2] == 1.0f) return x;
+    r = core->godot_transform_get_basis(&x);
+    o = core->godot_transform_get_origin(&x);
+    core->godot_vector3_new(&row[0], t->scale[0], 0, 0);
+    core->godot_vector3_new(&row[1], 0, t->scale[1], 0);
+    core->godot_vector3_new(&row[2], 0, 0, t->scale[2]);
+    core->godot_basis_new_with_rows(&sb, &row[0], &row[1], &row[2]);
+    rs = core->godot_basis_operator_multiply_vector(&r, &sb); /* Basis * Basis, despite the name */
+    core->godot_transform_new(&x, &rs, &o);
+    return x;
+}
+
+/* The pairs of a Dictionary {bone name: node name or null} as C strings (freed by the caller
+ * through `strings`, `count` of them). */
+static uint32_t read_pairs(const godot_dictionary *d, mcd_retarget_pair *pairs, uint32_t max, godot_char_string *strings,
+                           uint32_t *count) {
+    godot_array keys = core->godot_dictionary_keys(d);
+    godot_int n = core->godot_array_size(&keys), i;
+    uint32_t made = 0;
+    *count = 0;
+    for (i = 0; i < n && made < max; i++) {
+        godot_variant key = core->godot_array_get(&keys, i), value = core->godot_dictionary_get(d, &key);
+        godot_string ks = core->godot_variant_as_string(&key);
+        strings[*count] = core->godot_string_utf8(&ks);
+        pairs[made].bone = core->godot_char_string_get_data(&strings[(*count)++]);
+        core->godot_string_destroy(&ks);
+        if (core->godot_variant_get_type(&value) == GODOT_VARIANT_TYPE_NIL) {
+            pairs[made].node = NULL;
+        } else {
+            godot_string vs = core->godot_variant_as_string(&value);
+            strings[*count] = core->godot_string_utf8(&vs);
+            pairs[made].node = core->godot_char_string_get_data(&strings[(*count)++]);
+            core->godot_string_destroy(&vs);
+        }
+        core->godot_variant_destroy(&value);
+        core->godot_variant_destroy(&key);
+        made++;
+    }
+    core->godot_array_destroy(&keys);
+    return made;
+}
+
+#define MAX_PAIRS 256
+
+/* bind_skeleton(skeleton: Skeleton, skeleton_index: int, unit_scale := 1.0, flags := 3,
+ *               pairs := {}) -> int: bones driven by a node, or -1. The Skeleton's bones (names,
+ * parents, rests) are the rig; unit_scale is rig units per asset unit (metres: cm_per_unit /
+ * 100), flags the runtime's MCD_RETARGET_* (1 root motion, 2 match bone directions), pairs
+ * {bone: node or null} overrides the name match. */
 static godot_variant m_bind_skeleton(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
     instance *self = ud;
     godot_object *skeleton;
-    mcd_skeleton_info info;
-    uint32_t i, matched = 0;
+    mcd_retarget_config config;
+    mcd_retarget_issue issue;
+    mcd_retarget_pair pairs[MAX_PAIRS];
+    static godot_char_string strings[2 * MAX_PAIRS];
+    godot_char_string *names = NULL;
+    mcd_rig_bone *bones = NULL;
+    uint32_t pair_count = 0, string_count = 0, i;
+    int64_t bone_count = 0;
+    mcd_result r;
     (void)o, (void)md;
     unbind(self);
-    if (argc != 2 || !self->a.opened) return v_int(-1);
-    skeleton = core->godot_variant_as_object(argv[0]);
-    self->skeleton_index = (uint32_t)core->godot_variant_as_int(argv[1]);
-    if (!skeleton || mcd_get_skeleton_info(&self->a.asset, self->skeleton_index, &info) != MCD_OK) {
-        report("MocodecAnimation.bind_skeleton", MCD_ERROR_INVALID_ARGUMENT);
+    if (argc < 2 || argc > 5 || !self->a.opened || !(skeleton = core->godot_variant_as_object(argv[0]))) {
+        report("MocodecAnimation.bind_skeleton(skeleton, skeleton_index, unit_scale, flags, pairs)", MCD_ERROR_INVALID_ARGUMENT);
         return v_int(-1);
     }
-    self->bone_of_node = core->godot_alloc((int)(info.node_count * sizeof(int64_t)));
-    self->inverse_rest = core->godot_alloc((int)(info.node_count * sizeof(godot_transform)));
-    for (i = 0; i < info.node_count; i++) {
-        mcd_node_info node;
-        godot_string name;
-        const void *args[1];
-        int64_t bone = -1;
-        mcd_get_node_info(&self->a.asset, self->skeleton_index, i, &node);
-        core->godot_string_new(&name);
-        core->godot_string_parse_utf8(&name, node.name);
-        args[0] = &name;
-        core->godot_method_bind_ptrcall(skel_find_bone, skeleton, args, &bone);
-        core->godot_string_destroy(&name);
-        self->bone_of_node[i] = bone;
-        if (bone >= 0) {
-            /* Godot composes a bone as parent * rest * pose; keeping rest^-1 turns the asset's
-             * local transform into the pose, so any rest the rig has is honoured. */
-            godot_transform rest;
-            const void *rest_args[1];
-            rest_args[0] = &bone;
-            core->godot_method_bind_ptrcall(skel_get_bone_rest, skeleton, rest_args, &rest);
-            self->inverse_rest[i] = core->godot_transform_affine_inverse(&rest);
-            matched++;
-        }
+    mcd_retarget_config_default(&config);
+    if (argc >= 3) config.unit_scale = (float)core->godot_variant_as_real(argv[2]);
+    if (argc >= 4) config.flags = (uint32_t)core->godot_variant_as_int(argv[3]);
+    if (argc >= 5) {
+        godot_dictionary d = core->godot_variant_as_dictionary(argv[4]);
+        pair_count = read_pairs(&d, pairs, MAX_PAIRS, strings, &string_count);
+        core->godot_dictionary_destroy(&d);
     }
-    self->skeleton = skeleton;
-    self->bound_nodes = info.node_count;
-    return v_int(matched);
+    core->godot_method_bind_ptrcall(skel_get_bone_count, skeleton, NULL, &bone_count);
+    if (bone_count > 0) {
+        bones = core->godot_alloc((int)(bone_count * (int64_t)sizeof *bones));
+        names = core->godot_alloc((int)(bone_count * (int64_t)sizeof *names));
+        self->inverse_rest = core->godot_alloc((int)(bone_count * (int64_t)sizeof(godot_transform)));
+    }
+    for (i = 0; i < (uint32_t)bone_count; i++) {
+        int64_t bone = i, parent = -1;
+        const void *args[1];
+        godot_string name;
+        godot_transform rest;
+        args[0] = &bone;
+        core->godot_string_new(&name); /* a String result is assigned to, so it must exist */
+        core->godot_method_bind_ptrcall(skel_get_bone_name, skeleton, args, &name);
+        names[i] = core->godot_string_utf8(&name);
+        core->godot_string_destroy(&name);
+        core->godot_method_bind_ptrcall(skel_get_bone_parent, skeleton, args, &parent);
+        core->godot_method_bind_ptrcall(skel_get_bone_rest, skeleton, args, &rest);
+        bones[i].name = core->godot_char_string_get_data(&names[i]);
+        bones[i].parent = (int32_t)parent;
+        bones[i].flags = 0;
+        bones[i].rest = from_transform(&rest);
+        self->inverse_rest[i] = core->godot_transform_affine_inverse(&rest);
+    }
+    r = mcd_engine_rig_build(&self->rig, &self->a, (uint32_t)core->godot_variant_as_int(argv[1]), bones, (uint32_t)bone_count,
+                             pairs, pair_count, &config, &godot_memory, &issue);
+    if (r != MCD_OK) {
+        /* one line: which bone, pair or setting */
+        char where[320];
+        const char *what = issue.where == MCD_RETARGET_ISSUE_BONE ? "bone" : issue.where == MCD_RETARGET_ISSUE_PAIR ? "pair" : "setting";
+        const char *name = issue.where == MCD_RETARGET_ISSUE_BONE && issue.index < bone_count ? bones[issue.index].name
+                         : issue.where == MCD_RETARGET_ISSUE_PAIR && issue.index < pair_count && pairs[issue.index].bone ? pairs[issue.index].bone
+                         : "";
+        size_t k = 0;
+        const char *prefix = "MocodecAnimation.bind_skeleton: ";
+        while (*prefix && k < sizeof where - 1) where[k++] = *prefix++;
+        while (*what && k < sizeof where - 1) where[k++] = *what++;
+        if (*name && k < sizeof where - 3) where[k++] = ' ', where[k++] = '\'';
+        while (*name && k < sizeof where - 2) where[k++] = *name++;
+        if (k > 0 && where[k - 1] != 'g' && k < sizeof where - 1) where[k++] = '\'';
+        where[k] = 0;
+        report(where, r);
+    } else {
+        self->skeleton = skeleton;
+    }
+    for (i = 0; i < (uint32_t)bone_count; i++) core->godot_char_string_destroy(&names[i]);
+    for (i = 0; i < string_count; i++) core->godot_char_string_destroy(&strings[i]);
+    release(names);
+    release(bones);
+    if (r != MCD_OK) {
+        unbind(self);
+        return v_int(-1);
+    }
+    return v_int(self->rig.info.matched);
 }
 
-/* apply(skeleton: Skeleton, clip: int, time: float, flags: int) -> int: samples and sets the
- * bound skeleton's bone poses (local transforms; MCD_SAMPLE_WORLD is refused). */
+/* get_bone_node(bone: int) -> int: the asset node driving a bone of the bound skeleton, -1 */
+static godot_variant m_get_bone_node(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
+    instance *self = ud;
+    int32_t node = -1;
+    (void)o, (void)md;
+    if (!self->rig.bound || mcd_retarget_get_node(self->rig.map, (uint32_t)arg_int(argc, argv, 0), &node) != MCD_OK)
+        return v_int(-1);
+    return v_int(node);
+}
+
+/* apply(skeleton: Skeleton, clip: int, time: float, flags: int) -> int: samples, retargets onto
+ * the bound skeleton and sets its bone poses (MCD_SAMPLE_WORLD is refused). */
 static godot_variant m_apply(godot_object *o, void *md, void *ud, int argc, godot_variant **argv) {
     instance *self = ud;
-    mcd_clip_info info;
     mcd_result r;
     uint32_t i;
     (void)o, (void)md;
@@ -367,20 +527,19 @@ static godot_variant m_apply(godot_object *o, void *md, void *ud, int argc, godo
         report("MocodecAnimation.apply (bind_skeleton first, local flags only)", MCD_ERROR_INVALID_ARGUMENT);
         return v_int(MCD_ERROR_INVALID_ARGUMENT);
     }
-    r = mcd_get_clip_info(&self->a.asset, (uint32_t)core->godot_variant_as_int(argv[1]), &info);
-    if (r == MCD_OK && info.skeleton != self->skeleton_index) r = MCD_ERROR_INVALID_ARGUMENT;
-    if (r == MCD_OK) r = sample_into_pose(self, argc, argv, 1);
+    r = mcd_engine_rig_pose(&self->rig, &self->a, (uint32_t)core->godot_variant_as_int(argv[1]),
+                            (float)core->godot_variant_as_real(argv[2]), (uint32_t)core->godot_variant_as_int(argv[3]));
     if (r != MCD_OK) {
         report("MocodecAnimation.apply", r);
         return v_int(r);
     }
-    for (i = 0; i < self->bound_nodes; i++) {
+    for (i = 0; i < self->rig.info.bone_count; i++) {
         godot_transform local, pose;
+        int64_t bone = i;
         const void *args[2];
-        if (self->bone_of_node[i] < 0) continue;
-        local = to_transform(&self->a.pose[i]);
+        local = to_transform_scaled(&self->rig.rig_pose[i]);
         pose = core->godot_transform_operator_multiply(&self->inverse_rest[i], &local);
-        args[0] = &self->bone_of_node[i];
+        args[0] = &bone;
         args[1] = &pose;
         core->godot_method_bind_ptrcall(skel_set_bone_pose, self->skeleton, args, NULL);
     }
@@ -392,13 +551,18 @@ static godot_variant m_apply(godot_object *o, void *md, void *ud, int argc, godo
 static void *create(godot_object *obj, void *md) {
     instance *self = core->godot_alloc(sizeof(instance));
     (void)obj, (void)md;
-    if (self) memset(self, 0, sizeof *self);
+    if (self) {
+        memset(self, 0, sizeof *self);
+        core->godot_pool_byte_array_new(&self->data);
+        self->result = MCD_ERROR_INVALID_ARGUMENT; /* nothing loaded yet */
+    }
     return self;
 }
 
 static void destroy(godot_object *obj, void *md, void *ud) {
     (void)obj, (void)md;
     close_asset(ud);
+    core->godot_pool_byte_array_destroy(&((instance *)ud)->data);
     release(ud);
 }
 
@@ -408,7 +572,9 @@ ENTRY void godot_gdnative_init(godot_gdnative_init_options *options) {
     for (i = 0; i < core->num_extensions; i++)
         if (core->extensions[i]->type == GDNATIVE_EXT_NATIVESCRIPT)
             ns = (const godot_gdnative_ext_nativescript_api_struct *)core->extensions[i];
-    skel_find_bone = core->godot_method_bind_get_method("Skeleton", "find_bone");
+    skel_get_bone_count = core->godot_method_bind_get_method("Skeleton", "get_bone_count");
+    skel_get_bone_name = core->godot_method_bind_get_method("Skeleton", "get_bone_name");
+    skel_get_bone_parent = core->godot_method_bind_get_method("Skeleton", "get_bone_parent");
     skel_get_bone_rest = core->godot_method_bind_get_method("Skeleton", "get_bone_rest");
     skel_set_bone_pose = core->godot_method_bind_get_method("Skeleton", "set_bone_pose");
 }
@@ -427,6 +593,7 @@ ENTRY void godot_nativescript_init(void *handle) {
         method_fn fn;
     } methods[] = {
         {"load_bytes", m_load_bytes},
+        {"get_result", m_get_result},
         {"get_version", m_get_version},
         {"result_string", m_result_string},
         {"get_clip_count", m_get_clip_count},
@@ -442,11 +609,14 @@ ENTRY void godot_nativescript_init(void *handle) {
         {"get_cm_per_unit", m_get_cm_per_unit},
         {"get_node_name", m_get_node_name},
         {"get_node_parent", m_get_node_parent},
-        {"get_node_rest_offset", m_get_node_rest_offset},
+        {"get_node_kind", m_get_node_kind},
+        {"get_node_rest", m_get_node_rest},
         {"sample", m_sample},
         {"get_pose_rotation", m_get_pose_rotation},
         {"get_pose_translation", m_get_pose_translation},
+        {"get_pose_scale", m_get_pose_scale},
         {"bind_skeleton", m_bind_skeleton},
+        {"get_bone_node", m_get_bone_node},
         {"apply", m_apply},
     };
     godot_instance_create_func c = {NULL, NULL, NULL};
@@ -454,7 +624,22 @@ ENTRY void godot_nativescript_init(void *handle) {
     size_t i;
     c.create_func = create;
     d.destroy_func = destroy;
-    ns->godot_nativescript_register_class(handle, "MocodecAnimation", "Reference", c, d);
+    godot_property_attributes data_attr;
+    godot_property_set_func set = {NULL, NULL, NULL};
+    godot_property_get_func get = {NULL, NULL, NULL};
+    /* a tool class: the editor's import plugin (addons/mocodec) runs it */
+    ns->godot_nativescript_register_tool_class(handle, "MocodecAnimation", "Resource", c, d);
+    memset(&data_attr, 0, sizeof data_attr);
+    data_attr.type = GODOT_VARIANT_TYPE_POOL_BYTE_ARRAY;
+    data_attr.hint = GODOT_PROPERTY_HINT_NONE;
+    core->godot_string_new(&data_attr.hint_string);
+    data_attr.usage = GODOT_PROPERTY_USAGE_STORAGE; /* saved, not shown as a byte list */
+    core->godot_variant_new_nil(&data_attr.default_value);
+    set.set_func = p_set_data;
+    get.get_func = p_get_data;
+    ns->godot_nativescript_register_property(handle, "MocodecAnimation", "data", &data_attr, set, get);
+    core->godot_string_destroy(&data_attr.hint_string);
+    core->godot_variant_destroy(&data_attr.default_value);
     for (i = 0; i < sizeof methods / sizeof methods[0]; i++) {
         godot_instance_method m = {NULL, NULL, NULL};
         godot_method_attributes attr = {GODOT_METHOD_RPC_MODE_DISABLED};

@@ -7,10 +7,15 @@ import json
 import sys
 
 METHODS = [  # (class, method, macro)
-    ("Skeleton3D", "find_bone", "HASH_SKELETON3D_FIND_BONE"),
+    ("Skeleton3D", "get_bone_count", "HASH_SKELETON3D_GET_BONE_COUNT"),
+    ("Skeleton3D", "get_bone_name", "HASH_SKELETON3D_GET_BONE_NAME"),
+    ("Skeleton3D", "get_bone_parent", "HASH_SKELETON3D_GET_BONE_PARENT"),
+    ("Skeleton3D", "get_bone_rest", "HASH_SKELETON3D_GET_BONE_REST"),
     ("Skeleton3D", "set_bone_pose_rotation", "HASH_SKELETON3D_SET_BONE_POSE_ROTATION"),
     ("Skeleton3D", "set_bone_pose_position", "HASH_SKELETON3D_SET_BONE_POSE_POSITION"),
-    ("Node", "get_node_or_null", "HASH_NODE_GET_NODE_OR_NULL"),
+    ("Skeleton3D", "set_bone_pose_scale", "HASH_SKELETON3D_SET_BONE_POSE_SCALE"),
+    ("SkeletonModifier3D", "get_skeleton", "HASH_SKELETONMODIFIER3D_GET_SKELETON"),
+    ("Node", "get_process_delta_time", "HASH_NODE_GET_PROCESS_DELTA_TIME"),
 ]
 BUILTIN_METHODS = [("PackedByteArray", "size", "HASH_PACKED_BYTE_ARRAY_SIZE")]
 ENUM_VALUES = [  # (global enum, value name, macro)

@@ -1,19 +1,24 @@
 /*
  * Godot 4 binding of the mocodec runtime, a GDExtension in C99 with no dependency but the
  * official gdextension_interface.h (fetched at build time from the crates.io crate
- * gdextension-api 0.4.0, interface 4.2, so Godot 4.2 and newer load it). Two classes:
+ * gdextension-api 0.4.0, interface 4.3, so Godot 4.3 and newer load it). Two classes:
  *
  *   MocodecAnimation (Resource): holds the .mcd bytes (property `data`, saved with the
- *     resource), opens them with the runtime, answers clip/skeleton queries and samples poses.
- *   MocodecSkeletonPlayer (Node): plays one clip of a MocodecAnimation on a Skeleton3D, bones
- *     matched by name, every frame from _process. Buffers are allocated when it binds to an
- *     animation and skeleton, never per frame.
+ *     resource: addons/mocodec's import plugin turns each .mcd into one), opens them with the
+ *     runtime, answers clip/skeleton queries and samples poses.
+ *   MocodecSkeletonModifier (SkeletonModifier3D, Godot 4.3+): plays one clip of a
+ *     MocodecAnimation on its parent Skeleton3D through the runtime's retargeting (the
+ *     skeleton's own bone names, rests and proportions). The skeleton calls it in its
+ *     modification pass, after the AnimationMixer / AnimationTree, and blends it by the
+ *     modifier's `influence`; it never writes bones from _process. Buffers are allocated when
+ *     it binds to an animation and skeleton, never per frame.
  *
  * Every method is registered with both entry points Godot uses: a Variant call (GDScript's
  * dynamic calls) and a ptrcall (typed calls), both funnelled into one implementation per
  * method through the small type table below. Results are the runtime's codes (0 = OK);
  * failures are also printed through Godot's error channel.
  */
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -91,10 +96,12 @@ static ctor_fn bytes_new, bytes_copy, node_path_new, node_path_copy;
 static dtor_fn string_name_free, string_free, bytes_free, node_path_free;
 static builtin_fn bytes_size;
 static operator_fn string_name_equal;
-static const void *skel_find_bone, *skel_set_rotation, *skel_set_position, *node_get_node;
-static void *skeleton_tag, *animation_tag;
+static const void *skel_get_bone_count, *skel_get_bone_name, *skel_get_bone_parent, *skel_get_bone_rest, *skel_set_rotation,
+    *skel_set_position, *skel_set_scale, *modifier_get_skeleton, *node_get_delta;
+static void *animation_tag;
 
-static gd_string_name name_animation, name_player, name_resource, name_node, name_process, name_empty;
+static gd_string_name name_animation, name_modifier, name_resource, name_modifier_base, name_process, name_process_delta,
+    name_empty;
 
 static void make_name(gd_string_name *out, const char *latin1) {
     gd.string_name_new(out, latin1, 1); /* the literals live as long as the library */
@@ -102,10 +109,6 @@ static void make_name(gd_string_name *out, const char *latin1) {
 
 static void report(const char *where, mcd_result r) {
     gd.print_error(mcd_result_string(r), where, __FILE__, __LINE__, 0);
-}
-
-static void release(void *p) {
-    if (p) gd.mem_free(p);
 }
 
 /* ---- MocodecAnimation ------------------------------------------------------------------------ */
@@ -243,6 +246,23 @@ static void animation_get_node_parent(void *p, const void *const *args, void *re
     *(int64_t *)ret = node_info(p, args, &info) ? (int64_t)info.parent : -2;
 }
 
+static void animation_get_node_kind(void *p, const void *const *args, void *ret) {
+    mcd_node_info info;
+    *(int64_t *)ret = node_info(p, args, &info) ? (int64_t)info.kind : -1;
+}
+
+static void animation_get_node_rest_rotation(void *p, const void *const *args, void *ret) {
+    static const float identity[4] = {0, 0, 0, 1};
+    mcd_node_info info;
+    memcpy(ret, node_info(p, args, &info) ? info.rest_rotation : identity, 4 * sizeof(float));
+}
+
+static void animation_get_node_rest_translation(void *p, const void *const *args, void *ret) {
+    static const float zero[3] = {0, 0, 0};
+    mcd_node_info info;
+    memcpy(ret, node_info(p, args, &info) ? info.rest_translation : zero, 3 * sizeof(float));
+}
+
 /* sample(clip, time, flags) -> result; read the pose with get_pose_rotation/translation */
 static void animation_sample(void *p, const void *const *args, void *ret) {
     animation *self = p;
@@ -255,7 +275,7 @@ static void animation_sample(void *p, const void *const *args, void *ret) {
 }
 
 static const mcd_transform *pose_at(animation *self, const void *const *args) {
-    static const mcd_transform identity = {{0, 0, 0, 1}, {0, 0, 0}};
+    static const mcd_transform identity = {{0, 0, 0, 1}, {0, 0, 0}, {1, 1, 1}};
     int64_t i = *(const int64_t *)args[0];
     return self->a.opened && i >= 0 && i < (int64_t)self->a.asset.max_nodes ? &self->a.pose[i] : &identity;
 }
@@ -268,37 +288,28 @@ static void animation_get_pose_translation(void *p, const void *const *args, voi
     memcpy(ret, pose_at(p, args)->translation, 3 * sizeof(float));
 }
 
-/* ---- MocodecSkeletonPlayer ------------------------------------------------------------------- */
+static void animation_get_pose_scale(void *p, const void *const *args, void *ret) {
+    memcpy(ret, pose_at(p, args)->scale, 3 * sizeof(float));
+}
+
+/* ---- MocodecSkeletonModifier ----------------------------------------------------------------- */
 
 typedef struct {
     GDExtensionObjectPtr object;
     gd_variant animation_ref; /* a Variant holding the Ref keeps the resource alive */
     animation *anim;
-    gd_node_path skeleton_path;
     int64_t clip;
-    double time, speed;
-    uint8_t playing, loop, contacts;
+    double time, speed, unit_scale; /* unit_scale 0: metres from the asset's cm_per_unit */
+    uint8_t playing, loop, contacts, root_motion, match_directions;
     /* bound state, rebuilt when a property changes or sampling fails */
-    uint32_t bound;
     GDObjectInstanceID skeleton_id;
-    uint32_t node_count;
-    int64_t *bone_of_node;
-    uint8_t *scratch_block;
-    void *scratch;
-    mcd_transform *pose;
-    float metres_per_unit;
+    mcd_engine_rig rig;
     double duration;
-} player;
+} modifier;
 
-static void player_unbind(player *self) {
-    release(self->bone_of_node);
-    release(self->scratch_block);
-    release(self->pose);
-    self->bone_of_node = NULL;
-    self->scratch_block = NULL;
-    self->scratch = NULL;
-    self->pose = NULL;
-    self->bound = 0;
+static void modifier_unbind(modifier *self) {
+    mcd_engine_rig_close(&self->rig, &godot_memory);
+    self->skeleton_id = 0;
 }
 
 static animation *as_animation(GDExtensionObjectPtr obj) {
@@ -307,57 +318,86 @@ static animation *as_animation(GDExtensionObjectPtr obj) {
     return gd.object_get_binding(obj, library, &none);
 }
 
-/* Resolves the skeleton and maps the clip's nodes to its bones by name. */
-static int player_bind(player *self) {
-    GDExtensionObjectPtr skeleton = NULL;
-    const void *args[1];
+/* Godot's Transform3D (float_32): the basis rows, then the origin. */
+typedef struct { float rows[3][3]; float origin[3]; } gd_transform3d;
+
+static mcd_transform from_transform3d(const gd_transform3d *x) {
+    mcd_transform t;
+    double m[3][3], len[3];
+    int r, c;
+    /* column lengths are the scale (basis = R * diag(scale)) */
+    for (c = 0; c < 3; c++) {
+        len[c] = sqrt((double)x->rows[0][c] * x->rows[0][c] + (double)x->rows[1][c] * x->rows[1][c] +
+                      (double)x->rows[2][c] * x->rows[2][c]);
+        if (!(len[c] > 0)) len[c] = 1;
+        t.scale[c] = (float)len[c];
+        t.translation[c] = x->origin[c];
+    }
+    for (r = 0; r < 3; r++)
+        for (c = 0; c < 3; c++) m[r][c] = x->rows[r][c] / len[c];
+    mcd_engine_rotation_from_rows(m, t.rotation);
+    return t;
+}
+
+/* The skeleton's bones (names, parents, rests) as the rig, retargeted from the clip's skeleton. */
+static int modifier_bind(modifier *self, GDExtensionObjectPtr skeleton) {
     mcd_clip_info clip;
     mcd_skeleton_info skel;
-    size_t scratch_size;
-    uint32_t i;
-    player_unbind(self);
+    mcd_retarget_config config;
+    mcd_retarget_issue issue;
+    mcd_rig_bone *bones;
+    char (*names)[256];
+    int64_t count = 0, i;
+    mcd_result r;
+    modifier_unbind(self);
     if (!self->anim || !self->anim->a.opened) return 0;
     if (mcd_get_clip_info(&self->anim->a.asset, (uint32_t)self->clip, &clip) != MCD_OK) return 0;
     mcd_get_skeleton_info(&self->anim->a.asset, clip.skeleton, &skel);
-    args[0] = &self->skeleton_path;
-    gd.method_ptrcall(node_get_node, self->object, args, &skeleton);
-    if (!skeleton || !gd.object_cast_to(skeleton, skeleton_tag)) return 0;
-    self->skeleton_id = gd.object_get_id(skeleton);
-    self->node_count = clip.node_count;
-    self->duration = clip.duration;
-    self->metres_per_unit = skel.cm_per_unit * 0.01f; /* Godot scenes are in metres */
-    self->bone_of_node = gd.mem_alloc(clip.node_count * sizeof(int64_t) + 1);
-    for (i = 0; i < clip.node_count; i++) {
-        mcd_node_info node;
+    gd.method_ptrcall(skel_get_bone_count, skeleton, NULL, &count);
+    if (count <= 0) return 0;
+    bones = gd.mem_alloc((size_t)count * sizeof *bones);
+    names = gd.mem_alloc((size_t)count * sizeof *names);
+    for (i = 0; i < count; i++) {
+        const void *args[1];
         gd_string name;
-        int64_t bone = -1;
-        mcd_get_node_info(&self->anim->a.asset, clip.skeleton, i, &node);
-        gd.string_new_utf8(&name, node.name);
-        args[0] = &name;
-        gd.method_ptrcall(skel_find_bone, skeleton, args, &bone);
+        gd_transform3d rest;
+        int64_t parent = -1;
+        GDExtensionInt n;
+        args[0] = &i;
+        gd.method_ptrcall(skel_get_bone_name, skeleton, args, &name);
+        n = gd.string_to_utf8(&name, names[i], 255);
+        names[i][n < 0 ? 0 : (n > 255 ? 255 : n)] = 0;
         string_free(&name);
-        self->bone_of_node[i] = bone;
+        gd.method_ptrcall(skel_get_bone_parent, skeleton, args, &parent);
+        gd.method_ptrcall(skel_get_bone_rest, skeleton, args, &rest);
+        bones[i].name = names[i];
+        bones[i].parent = (int32_t)parent;
+        bones[i].flags = 0;
+        bones[i].rest = from_transform3d(&rest);
     }
-    scratch_size = mcd_scratch_size(&self->anim->a.asset);
-    self->scratch_block = gd.mem_alloc(scratch_size + 16);
-    self->scratch = mcd_engine_align16(self->scratch_block);
-    self->pose = gd.mem_alloc(clip.node_count * sizeof(mcd_transform) + 1);
-    if (mcd_scratch_init(&self->anim->a.asset, self->scratch, scratch_size) != MCD_OK) return 0;
-    self->bound = 1;
+    mcd_retarget_config_default(&config);
+    config.flags = (self->root_motion ? MCD_RETARGET_ROOT_MOTION : 0u) | (self->match_directions ? MCD_RETARGET_MATCH_DIRECTIONS : 0u);
+    config.unit_scale = self->unit_scale > 0 ? (float)self->unit_scale : skel.cm_per_unit * 0.01f; /* Godot scenes are in metres */
+    r = mcd_engine_rig_build(&self->rig, &self->anim->a, clip.skeleton, bones, (uint32_t)count, NULL, 0, &config,
+                             &godot_memory, &issue);
+    if (r != MCD_OK) report(issue.where == MCD_RETARGET_ISSUE_BONE ? "MocodecSkeletonModifier: a bone of the skeleton"
+                                                                    : "MocodecSkeletonModifier: retargeting settings", r);
+    gd.mem_free(names);
+    gd.mem_free(bones);
+    if (r != MCD_OK) return 0;
+    self->skeleton_id = gd.object_get_id(skeleton);
+    self->duration = clip.duration;
     return 1;
 }
 
-/* Advances time and writes the pose: the body of _process, also callable as advance(delta). */
-static void player_step(player *self, double delta) {
-    GDExtensionObjectPtr skeleton;
+/* Advances time and poses the skeleton: the body of the modification pass. */
+static void modifier_step(modifier *self, double delta) {
+    GDExtensionObjectPtr skeleton = NULL;
     mcd_result r;
     uint32_t i;
-    if (!self->bound && !player_bind(self)) return;
-    skeleton = gd.object_from_id(self->skeleton_id);
-    if (!skeleton) {
-        player_unbind(self);
-        return;
-    }
+    gd.method_ptrcall(modifier_get_skeleton, self->object, NULL, &skeleton);
+    if (!skeleton) return;
+    if ((!self->rig.bound || gd.object_get_id(skeleton) != self->skeleton_id) && !modifier_bind(self, skeleton)) return;
     if (self->playing) {
         self->time += delta * self->speed;
         if (!self->loop && (self->time > self->duration || self->time < 0)) {
@@ -365,33 +405,34 @@ static void player_step(player *self, double delta) {
             self->playing = 0;
         }
     }
-    r = mcd_sample(&self->anim->a.asset, (uint32_t)self->clip, (float)self->time,
-                   (self->loop ? MCD_SAMPLE_LOOP : 0) | (self->contacts ? MCD_SAMPLE_CONTACTS : 0), self->pose, self->node_count, self->scratch);
-    if (r != MCD_OK) { /* e.g. the animation's data changed under us: rebind next frame */
-        report("MocodecSkeletonPlayer", r);
-        player_unbind(self);
+    r = mcd_engine_rig_pose(&self->rig, &self->anim->a, (uint32_t)self->clip, (float)self->time,
+                            (self->loop ? MCD_SAMPLE_LOOP : 0) | (self->contacts ? MCD_SAMPLE_CONTACTS : 0));
+    if (r != MCD_OK) { /* e.g. the animation's data changed under us: rebind next time */
+        report("MocodecSkeletonModifier", r);
+        modifier_unbind(self);
         return;
     }
-    for (i = 0; i < self->node_count; i++) {
+    for (i = 0; i < self->rig.info.bone_count; i++) {
         const void *args[2];
-        float position[3];
-        if (self->bone_of_node[i] < 0) continue;
-        args[0] = &self->bone_of_node[i];
-        args[1] = self->pose[i].rotation;
+        int64_t bone = i;
+        int32_t node = -1;
+        /* a bone the asset does not drive keeps what the AnimationMixer gave it */
+        if (mcd_retarget_get_node(self->rig.map, i, &node) != MCD_OK || node < 0) continue;
+        args[0] = &bone;
+        args[1] = self->rig.rig_pose[i].rotation;
         gd.method_ptrcall(skel_set_rotation, skeleton, args, NULL);
-        position[0] = self->pose[i].translation[0] * self->metres_per_unit;
-        position[1] = self->pose[i].translation[1] * self->metres_per_unit;
-        position[2] = self->pose[i].translation[2] * self->metres_per_unit;
-        args[1] = position;
+        args[1] = self->rig.rig_pose[i].translation;
         gd.method_ptrcall(skel_set_position, skeleton, args, NULL);
+        args[1] = self->rig.rig_pose[i].scale;
+        gd.method_ptrcall(skel_set_scale, skeleton, args, NULL);
     }
 }
 
-static void player_set_animation(void *p, const void *const *args, void *ret) {
-    player *self = p;
+static void modifier_set_animation(void *p, const void *const *args, void *ret) {
+    modifier *self = p;
     GDExtensionObjectPtr obj = *(GDExtensionObjectPtr const *)args[0];
     (void)ret;
-    player_unbind(self);
+    modifier_unbind(self);
     gd.variant_destroy(&self->animation_ref);
     self->anim = as_animation(obj);
     if (self->anim)
@@ -400,63 +441,70 @@ static void player_set_animation(void *p, const void *const *args, void *ret) {
         gd.variant_new_nil(&self->animation_ref);
 }
 
-static void player_get_animation(void *p, const void *const *args, void *ret) {
-    player *self = p;
+static void modifier_get_animation(void *p, const void *const *args, void *ret) {
+    modifier *self = p;
     (void)args;
     *(GDExtensionObjectPtr *)ret = self->anim ? self->anim->object : NULL;
 }
 
-static void player_set_skeleton(void *p, const void *const *args, void *ret) {
-    player *self = p;
-    const void *copy_args[1];
-    (void)ret;
-    player_unbind(self);
-    node_path_free(&self->skeleton_path);
-    copy_args[0] = args[0];
-    node_path_copy(&self->skeleton_path, copy_args);
-}
-
-static void player_get_skeleton(void *p, const void *const *args, void *ret) {
-    const void *copy_args[1];
-    (void)args;
-    copy_args[0] = &((player *)p)->skeleton_path;
-    node_path_copy(ret, copy_args);
-}
-
-static void player_set_clip(void *p, const void *const *args, void *ret) {
-    (void)ret;
-    player_unbind(p);
-    ((player *)p)->clip = *(const int64_t *)args[0];
-}
-
-static void player_get_clip(void *p, const void *const *args, void *ret) {
-    (void)args;
-    *(int64_t *)ret = ((player *)p)->clip;
-}
-
-#define PLAYER_FIELD(name, field, ctype)                                            \
-    static void player_set_##name(void *p, const void *const *args, void *ret) {    \
+/* A property whose change needs a new retargeting map. */
+#define REBIND_FIELD(name, field, ctype)                                            \
+    static void modifier_set_##name(void *p, const void *const *args, void *ret) {  \
         (void)ret;                                                                  \
-        ((player *)p)->field = *(const ctype *)args[0];                             \
+        modifier_unbind(p);                                                         \
+        ((modifier *)p)->field = *(const ctype *)args[0];                           \
     }                                                                               \
-    static void player_get_##name(void *p, const void *const *args, void *ret) {    \
+    static void modifier_get_##name(void *p, const void *const *args, void *ret) {  \
         (void)args;                                                                 \
-        *(ctype *)ret = ((player *)p)->field;                                       \
+        *(ctype *)ret = ((modifier *)p)->field;                                     \
     }
-PLAYER_FIELD(time, time, double)
-PLAYER_FIELD(speed, speed, double)
-PLAYER_FIELD(playing, playing, uint8_t)
-PLAYER_FIELD(loop, loop, uint8_t)
-PLAYER_FIELD(contacts, contacts, uint8_t)
+REBIND_FIELD(clip, clip, int64_t)
+REBIND_FIELD(root_motion, root_motion, uint8_t)
+REBIND_FIELD(match_directions, match_directions, uint8_t)
+REBIND_FIELD(unit_scale, unit_scale, double)
 
-static void player_advance(void *p, const void *const *args, void *ret) {
+#define MODIFIER_FIELD(name, field, ctype)                                          \
+    static void modifier_set_##name(void *p, const void *const *args, void *ret) {  \
+        (void)ret;                                                                  \
+        ((modifier *)p)->field = *(const ctype *)args[0];                           \
+    }                                                                               \
+    static void modifier_get_##name(void *p, const void *const *args, void *ret) {  \
+        (void)args;                                                                 \
+        *(ctype *)ret = ((modifier *)p)->field;                                     \
+    }
+MODIFIER_FIELD(time, time, double)
+MODIFIER_FIELD(speed, speed, double)
+MODIFIER_FIELD(playing, playing, uint8_t)
+MODIFIER_FIELD(loop, loop, uint8_t)
+MODIFIER_FIELD(contacts, contacts, uint8_t)
+
+/* advance(delta): one modification pass by hand (what the skeleton runs each frame). */
+static void modifier_advance(void *p, const void *const *args, void *ret) {
     (void)ret;
-    player_step(p, *(const double *)args[0]);
+    modifier_step(p, *(const double *)args[0]);
 }
 
-static void player_process(GDExtensionClassInstancePtr p, const GDExtensionConstTypePtr *args, GDExtensionTypePtr ret) {
+/* get_bone_node(bone) -> the asset node driving a skeleton bone, -1 (also before binding) */
+static void modifier_get_bone_node(void *p, const void *const *args, void *ret) {
+    modifier *self = p;
+    int32_t node = -1;
+    if (self->rig.bound) mcd_retarget_get_node(self->rig.map, (uint32_t) * (const int64_t *)args[0], &node);
+    *(int64_t *)ret = node;
+}
+
+/* _process_modification_with_delta(delta) (4.5+) */
+static void modifier_process_delta(GDExtensionClassInstancePtr p, const GDExtensionConstTypePtr *args, GDExtensionTypePtr ret) {
     (void)ret;
-    player_step((player *)p, *(const double *)args[0]);
+    modifier_step((modifier *)p, *(const double *)args[0]);
+}
+
+/* _process_modification() (4.3, 4.4): the frame's delta comes from the node */
+static void modifier_process(GDExtensionClassInstancePtr p, const GDExtensionConstTypePtr *args, GDExtensionTypePtr ret) {
+    modifier *self = (modifier *)p;
+    double delta = 0;
+    (void)args, (void)ret;
+    gd.method_ptrcall(node_get_delta, self->object, NULL, &delta);
+    modifier_step(self, delta);
 }
 
 /* ---- method table and the two calling conventions ------------------------------------------- */
@@ -505,29 +553,38 @@ static const method_def animation_methods[] = {
     {"get_cm_per_unit", animation_get_cm_per_unit, K_FLOAT, 1, {K_INT}, {"skeleton"}},
     {"get_node_name", animation_get_node_name, K_STRING, 2, {K_INT, K_INT}, {"skeleton", "node"}},
     {"get_node_parent", animation_get_node_parent, K_INT, 2, {K_INT, K_INT}, {"skeleton", "node"}},
+    {"get_node_kind", animation_get_node_kind, K_INT, 2, {K_INT, K_INT}, {"skeleton", "node"}},
+    {"get_node_rest_rotation", animation_get_node_rest_rotation, K_QUATERNION, 2, {K_INT, K_INT}, {"skeleton", "node"}},
+    {"get_node_rest_translation", animation_get_node_rest_translation, K_VECTOR3, 2, {K_INT, K_INT}, {"skeleton", "node"}},
     {"sample", animation_sample, K_INT, 3, {K_INT, K_FLOAT, K_INT}, {"clip", "time", "flags"}},
     {"get_pose_rotation", animation_get_pose_rotation, K_QUATERNION, 1, {K_INT}, {"node"}},
     {"get_pose_translation", animation_get_pose_translation, K_VECTOR3, 1, {K_INT}, {"node"}},
+    {"get_pose_scale", animation_get_pose_scale, K_VECTOR3, 1, {K_INT}, {"node"}},
 };
 
-static const method_def player_methods[] = {
-    {"set_animation", player_set_animation, K_VOID, 1, {K_ANIMATION}, {"animation"}},
-    {"get_animation", player_get_animation, K_ANIMATION, 0, {K_VOID}, {NULL}},
-    {"set_skeleton", player_set_skeleton, K_VOID, 1, {K_NODE_PATH}, {"path"}},
-    {"get_skeleton", player_get_skeleton, K_NODE_PATH, 0, {K_VOID}, {NULL}},
-    {"set_clip", player_set_clip, K_VOID, 1, {K_INT}, {"clip"}},
-    {"get_clip", player_get_clip, K_INT, 0, {K_VOID}, {NULL}},
-    {"set_time", player_set_time, K_VOID, 1, {K_FLOAT}, {"time"}},
-    {"get_time", player_get_time, K_FLOAT, 0, {K_VOID}, {NULL}},
-    {"set_speed", player_set_speed, K_VOID, 1, {K_FLOAT}, {"speed"}},
-    {"get_speed", player_get_speed, K_FLOAT, 0, {K_VOID}, {NULL}},
-    {"set_playing", player_set_playing, K_VOID, 1, {K_BOOL}, {"playing"}},
-    {"is_playing", player_get_playing, K_BOOL, 0, {K_VOID}, {NULL}},
-    {"set_loop", player_set_loop, K_VOID, 1, {K_BOOL}, {"loop"}},
-    {"is_loop", player_get_loop, K_BOOL, 0, {K_VOID}, {NULL}},
-    {"set_contacts", player_set_contacts, K_VOID, 1, {K_BOOL}, {"contacts"}},
-    {"is_contacts", player_get_contacts, K_BOOL, 0, {K_VOID}, {NULL}},
-    {"advance", player_advance, K_VOID, 1, {K_FLOAT}, {"delta"}},
+static const method_def modifier_methods[] = {
+    {"set_animation", modifier_set_animation, K_VOID, 1, {K_ANIMATION}, {"animation"}},
+    {"get_animation", modifier_get_animation, K_ANIMATION, 0, {K_VOID}, {NULL}},
+    {"set_clip", modifier_set_clip, K_VOID, 1, {K_INT}, {"clip"}},
+    {"get_clip", modifier_get_clip, K_INT, 0, {K_VOID}, {NULL}},
+    {"set_time", modifier_set_time, K_VOID, 1, {K_FLOAT}, {"time"}},
+    {"get_time", modifier_get_time, K_FLOAT, 0, {K_VOID}, {NULL}},
+    {"set_speed", modifier_set_speed, K_VOID, 1, {K_FLOAT}, {"speed"}},
+    {"get_speed", modifier_get_speed, K_FLOAT, 0, {K_VOID}, {NULL}},
+    {"set_playing", modifier_set_playing, K_VOID, 1, {K_BOOL}, {"playing"}},
+    {"is_playing", modifier_get_playing, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_loop", modifier_set_loop, K_VOID, 1, {K_BOOL}, {"loop"}},
+    {"is_loop", modifier_get_loop, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_contacts", modifier_set_contacts, K_VOID, 1, {K_BOOL}, {"contacts"}},
+    {"is_contacts", modifier_get_contacts, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_root_motion", modifier_set_root_motion, K_VOID, 1, {K_BOOL}, {"root_motion"}},
+    {"is_root_motion", modifier_get_root_motion, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_match_directions", modifier_set_match_directions, K_VOID, 1, {K_BOOL}, {"match_directions"}},
+    {"is_match_directions", modifier_get_match_directions, K_BOOL, 0, {K_VOID}, {NULL}},
+    {"set_unit_scale", modifier_set_unit_scale, K_VOID, 1, {K_FLOAT}, {"unit_scale"}},
+    {"get_unit_scale", modifier_get_unit_scale, K_FLOAT, 0, {K_VOID}, {NULL}},
+    {"advance", modifier_advance, K_VOID, 1, {K_FLOAT}, {"delta"}},
+    {"get_bone_node", modifier_get_bone_node, K_INT, 1, {K_INT}, {"bone"}},
 };
 
 static int has_destructor(enum kind k) {
@@ -730,33 +787,35 @@ static void animation_free(void *userdata, GDExtensionClassInstancePtr p) {
     gd.mem_free(self);
 }
 
-static GDExtensionObjectPtr player_create(void *userdata) {
-    player *self = gd.mem_alloc(sizeof *self);
+static GDExtensionObjectPtr modifier_create(void *userdata) {
+    modifier *self = gd.mem_alloc(sizeof *self);
     (void)userdata;
     memset(self, 0, sizeof *self);
     gd.variant_new_nil(&self->animation_ref);
-    node_path_new(&self->skeleton_path, NULL);
     self->speed = 1.0;
     self->playing = 1;
     self->loop = 1;
     self->contacts = 1; /* contact IK on by default: a no-op for assets without contacts */
-    return attach(&name_node, &name_player, self, &self->object);
+    self->root_motion = 1;
+    self->match_directions = 1;
+    return attach(&name_modifier_base, &name_modifier, self, &self->object);
 }
 
-static void player_free(void *userdata, GDExtensionClassInstancePtr p) {
-    player *self = (player *)p;
+static void modifier_free(void *userdata, GDExtensionClassInstancePtr p) {
+    modifier *self = (modifier *)p;
     (void)userdata;
-    player_unbind(self);
+    modifier_unbind(self);
     gd.variant_destroy(&self->animation_ref);
-    node_path_free(&self->skeleton_path);
     gd.mem_free(self);
 }
 
-static GDExtensionClassCallVirtual player_get_virtual(void *userdata, GDExtensionConstStringNamePtr name) {
+static GDExtensionClassCallVirtual modifier_get_virtual(void *userdata, GDExtensionConstStringNamePtr name) {
     GDExtensionBool equal = 0;
     (void)userdata;
+    string_name_equal(name, &name_process_delta, &equal);
+    if (equal) return modifier_process_delta;
     string_name_equal(name, &name_process, &equal);
-    return equal ? player_process : NULL;
+    return equal ? modifier_process : NULL;
 }
 
 /* ---- initialisation ------------------------------------------------------------------------ */
@@ -774,7 +833,7 @@ static const void *method_bind(const char *cls, const char *method, GDExtensionI
 
 static void initialize(void *userdata, GDExtensionInitializationLevel level) {
     GDExtensionClassCreationInfo2 info;
-    gd_string_name skeleton_name, size_name;
+    gd_string_name size_name;
     (void)userdata;
     if (level != GDEXTENSION_INITIALIZATION_SCENE) return;
 
@@ -792,19 +851,22 @@ static void initialize(void *userdata, GDExtensionInitializationLevel level) {
     bytes_size = gd.ptr_builtin_method(GDEXTENSION_VARIANT_TYPE_PACKED_BYTE_ARRAY, &size_name, HASH_PACKED_BYTE_ARRAY_SIZE);
     string_name_free(&size_name);
 
-    skel_find_bone = method_bind("Skeleton3D", "find_bone", HASH_SKELETON3D_FIND_BONE);
+    skel_get_bone_count = method_bind("Skeleton3D", "get_bone_count", HASH_SKELETON3D_GET_BONE_COUNT);
+    skel_get_bone_name = method_bind("Skeleton3D", "get_bone_name", HASH_SKELETON3D_GET_BONE_NAME);
+    skel_get_bone_parent = method_bind("Skeleton3D", "get_bone_parent", HASH_SKELETON3D_GET_BONE_PARENT);
+    skel_get_bone_rest = method_bind("Skeleton3D", "get_bone_rest", HASH_SKELETON3D_GET_BONE_REST);
     skel_set_rotation = method_bind("Skeleton3D", "set_bone_pose_rotation", HASH_SKELETON3D_SET_BONE_POSE_ROTATION);
     skel_set_position = method_bind("Skeleton3D", "set_bone_pose_position", HASH_SKELETON3D_SET_BONE_POSE_POSITION);
-    node_get_node = method_bind("Node", "get_node_or_null", HASH_NODE_GET_NODE_OR_NULL);
-    make_name(&skeleton_name, "Skeleton3D");
-    skeleton_tag = gd.get_class_tag(&skeleton_name);
-    string_name_free(&skeleton_name);
+    skel_set_scale = method_bind("Skeleton3D", "set_bone_pose_scale", HASH_SKELETON3D_SET_BONE_POSE_SCALE);
+    modifier_get_skeleton = method_bind("SkeletonModifier3D", "get_skeleton", HASH_SKELETONMODIFIER3D_GET_SKELETON);
+    node_get_delta = method_bind("Node", "get_process_delta_time", HASH_NODE_GET_PROCESS_DELTA_TIME);
 
     make_name(&name_animation, "MocodecAnimation");
-    make_name(&name_player, "MocodecSkeletonPlayer");
+    make_name(&name_modifier, "MocodecSkeletonModifier");
     make_name(&name_resource, "Resource");
-    make_name(&name_node, "Node");
-    make_name(&name_process, "_process");
+    make_name(&name_modifier_base, "SkeletonModifier3D");
+    make_name(&name_process, "_process_modification");
+    make_name(&name_process_delta, "_process_modification_with_delta");
     make_name(&name_empty, "");
 
     memset(&info, 0, sizeof info);
@@ -818,25 +880,27 @@ static void initialize(void *userdata, GDExtensionInitializationLevel level) {
 
     memset(&info, 0, sizeof info);
     info.is_exposed = 1;
-    info.create_instance_func = player_create;
-    info.free_instance_func = player_free;
-    info.get_virtual_func = player_get_virtual;
-    gd.register_class(library, &name_player, &name_node, &info);
-    register_methods(&name_player, player_methods, sizeof player_methods / sizeof player_methods[0]);
-    register_property(&name_player, "animation", K_ANIMATION, "set_animation", "get_animation");
-    register_property(&name_player, "skeleton", K_NODE_PATH, "set_skeleton", "get_skeleton");
-    register_property(&name_player, "clip", K_INT, "set_clip", "get_clip");
-    register_property(&name_player, "time", K_FLOAT, "set_time", "get_time");
-    register_property(&name_player, "speed", K_FLOAT, "set_speed", "get_speed");
-    register_property(&name_player, "playing", K_BOOL, "set_playing", "is_playing");
-    register_property(&name_player, "loop", K_BOOL, "set_loop", "is_loop");
-    register_property(&name_player, "contacts", K_BOOL, "set_contacts", "is_contacts");
+    info.create_instance_func = modifier_create;
+    info.free_instance_func = modifier_free;
+    info.get_virtual_func = modifier_get_virtual;
+    gd.register_class(library, &name_modifier, &name_modifier_base, &info);
+    register_methods(&name_modifier, modifier_methods, sizeof modifier_methods / sizeof modifier_methods[0]);
+    register_property(&name_modifier, "animation", K_ANIMATION, "set_animation", "get_animation");
+    register_property(&name_modifier, "clip", K_INT, "set_clip", "get_clip");
+    register_property(&name_modifier, "time", K_FLOAT, "set_time", "get_time");
+    register_property(&name_modifier, "speed", K_FLOAT, "set_speed", "get_speed");
+    register_property(&name_modifier, "playing", K_BOOL, "set_playing", "is_playing");
+    register_property(&name_modifier, "loop", K_BOOL, "set_loop", "is_loop");
+    register_property(&name_modifier, "contacts", K_BOOL, "set_contacts", "is_contacts");
+    register_property(&name_modifier, "root_motion", K_BOOL, "set_root_motion", "is_root_motion");
+    register_property(&name_modifier, "match_directions", K_BOOL, "set_match_directions", "is_match_directions");
+    register_property(&name_modifier, "unit_scale", K_FLOAT, "set_unit_scale", "get_unit_scale");
 }
 
 static void deinitialize(void *userdata, GDExtensionInitializationLevel level) {
     (void)userdata;
     if (level != GDEXTENSION_INITIALIZATION_SCENE) return;
-    gd.unregister_class(library, &name_player);
+    gd.unregister_class(library, &name_modifier);
     gd.unregister_class(library, &name_animation);
 }
 
@@ -850,7 +914,8 @@ static void deinitialize(void *userdata, GDExtensionInitializationLevel level) {
     } while (0)
 
 /* The entry point named in mocodec.gdextension. Fails (returns 0) when the engine lacks an
- * interface function this library needs, i.e. an engine older than 4.2. */
+ * interface function this library needs; Godot 4.2 has no SkeletonModifier3D (the .gdextension
+ * asks for 4.3). */
 ENTRY GDExtensionBool mocodec_gdextension_init(GDExtensionInterfaceGetProcAddress get_proc,
                                                GDExtensionClassLibraryPtr lib,
                                                GDExtensionInitialization *init) {

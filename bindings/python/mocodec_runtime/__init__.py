@@ -21,6 +21,9 @@ __all__ = [
     "ClipInfo",
     "NodeInfo",
     "Result",
+    "Retarget",
+    "RetargetError",
+    "RigBone",
     "RuntimeResultError",
     "SAMPLE_CONTACTS",
     "SAMPLE_LOOP",
@@ -263,6 +266,108 @@ class Asset:
         if scales:
             return poses[..., :4], poses[..., 4:7], poses[..., 7:]
         return poses[..., :4], poses[..., 4:7]
+
+
+# ---------------------------------------------------------------- retargeting
+@dataclass(frozen=True)
+class RigBone:
+    """A bone of a game rig: name, parent index (-1 for a root, parents first), rest local
+    transform as 10 floats (``qx qy qz qw tx ty tz sx sy sz``) and ``keep_translation``."""
+
+    name: str
+    parent: int
+    rest: tuple[float, ...]
+    keep_translation: bool = False
+
+
+class RetargetError(RuntimeResultError):
+    """mcd_retarget_init refused an input; ``where`` and ``index`` name it."""
+
+    def __init__(self, code: int, where: str, index: int) -> None:
+        self.where, self.index = where, index
+        super().__init__(code, f"mcd_retarget_init ({where} {index})" if where != "none" else "mcd_retarget_init")
+
+
+_ISSUE_WHERE = {lib.MCD_RETARGET_ISSUE_NONE: "none", lib.MCD_RETARGET_ISSUE_BONE: "bone",
+                lib.MCD_RETARGET_ISSUE_PAIR: "pair", lib.MCD_RETARGET_ISSUE_CONFIG: "config"}
+
+
+class Retarget:
+    """Poses of one skeleton of ``asset`` onto a rig (the runtime's ``mcd_retarget_*``): bones
+    matched to nodes by name, ``pairs`` (bone name -> node name, or None to leave a bone out)
+    first. See runtime_c/include/mocodec.h for the rules. One work buffer per thread."""
+
+    def __init__(self, asset: Asset, skeleton: int, bones: list[RigBone], pairs: dict[str, str | None] | None = None,
+                 root_motion: bool = True, match_directions: bool = True, up_axis: int = 1, unit_scale: float = 1.0,
+                 space_rotation: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)) -> None:
+        self._asset = asset  # the map copies what it needs; kept only so skeleton indices stay meaningful
+        keep = []  # the C strings must live through init
+        rig = ffi.new("mcd_rig_bone[]", max(len(bones), 1))
+        for i, b in enumerate(bones):
+            name = ffi.new("char[]", b.name.encode("utf-8"))
+            keep.append(name)
+            rig[i].name = name
+            rig[i].parent = b.parent
+            rig[i].flags = lib.MCD_RIG_BONE_KEEP_TRANSLATION if b.keep_translation else 0
+            rest = [float(v) for v in b.rest]
+            if len(rest) != TRANSFORM_FLOATS:
+                raise ValueError(f"bone {i} {b.name!r}: rest needs {TRANSFORM_FLOATS} floats, got {len(rest)}")
+            rig[i].rest.rotation = rest[:4]
+            rig[i].rest.translation = rest[4:7]
+            rig[i].rest.scale = rest[7:]
+        items = list((pairs or {}).items())
+        cpairs = ffi.new("mcd_retarget_pair[]", max(len(items), 1))
+        for i, (bone, node) in enumerate(items):
+            cb = ffi.new("char[]", bone.encode("utf-8"))
+            keep.append(cb)
+            cpairs[i].bone = cb
+            if node is None:
+                cpairs[i].node = ffi.NULL
+            else:
+                cn = ffi.new("char[]", node.encode("utf-8"))
+                keep.append(cn)
+                cpairs[i].node = cn
+        config = ffi.new("mcd_retarget_config*")
+        lib.mcd_retarget_config_default(config)
+        config.flags = (lib.MCD_RETARGET_ROOT_MOTION if root_motion else 0) | (
+            lib.MCD_RETARGET_MATCH_DIRECTIONS if match_directions else 0)
+        config.up_axis = up_axis
+        config.unit_scale = unit_scale
+        config.space_rotation = list(space_rotation)
+        size = ffi.new("size_t*")
+        _check(lib.mcd_retarget_size(asset._asset, skeleton, len(bones), size), "mcd_retarget_size")
+        self._map_mem = ffi.new("uint64_t[]", size[0] // 8 + 1)  # 8-byte aligned
+        issue = ffi.new("mcd_retarget_issue*")
+        code = lib.mcd_retarget_init(asset._asset, skeleton, rig, len(bones), cpairs, len(items), config,
+                                     self._map_mem, size[0], issue)
+        if code != lib.MCD_OK:
+            raise RetargetError(code, _ISSUE_WHERE.get(issue.where, str(issue.where)), int(issue.index))
+        info = ffi.new("mcd_retarget_info*")
+        _check(lib.mcd_retarget_get_info(self._map_mem, info), "mcd_retarget_get_info")
+        self.bone_count, self.node_count, self.matched = int(info.bone_count), int(info.node_count), int(info.matched)
+        self._work_size = int(info.work_size)
+        self._local = threading.local()
+
+    def node_of(self, bone: int) -> int:
+        """The asset node driving rig bone ``bone``, or -1."""
+        out = ffi.new("int32_t*")
+        _check(lib.mcd_retarget_get_node(self._map_mem, bone, out), "mcd_retarget_get_node")
+        return int(out[0])
+
+    def pose(self, local_pose: np.ndarray) -> np.ndarray:
+        """The rig's local transforms ``(bone_count, 10)`` float32 for a local pose
+        ``(node_count, 10)`` of the asset's skeleton (what :meth:`Asset.sample` returns)."""
+        pose = np.ascontiguousarray(local_pose, dtype=np.float32)
+        if pose.ndim != 2 or pose.shape[1] != TRANSFORM_FLOATS:
+            raise ValueError(f"pose must be (node_count, {TRANSFORM_FLOATS}), got {pose.shape}")
+        work = getattr(self._local, "work", None)
+        if work is None:
+            work = self._local.work = ffi.new("uint64_t[]", self._work_size // 8 + 1)
+        out = np.empty((self.bone_count, TRANSFORM_FLOATS), dtype=np.float32)
+        _check(lib.mcd_retarget_pose(self._map_mem, ffi.cast("mcd_transform*", ffi.from_buffer(pose)), pose.shape[0],
+                                     ffi.cast("mcd_transform*", ffi.from_buffer(out)), self.bone_count,
+                                     work, self._work_size), "mcd_retarget_pose")
+        return out
 
 
 # ---------------------------------------------------------------- entropy coder

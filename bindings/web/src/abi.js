@@ -14,7 +14,17 @@ export const ABI = Object.freeze({
     size: 64, name: 0, parent: 4, kind: 8, restTranslation: 12, restRotation: 24, restScale: 40,
     channelCount: 52, channels: 56,
   },
+  // retargeting (mcd_retarget_*): mcd_rig_bone, mcd_retarget_pair, _config, _issue, _info
+  rigBone: { size: 52, name: 0, parent: 4, flags: 8, rest: 12 },
+  retargetPair: { size: 8, bone: 0, node: 4 },
+  retargetConfig: { size: 28, flags: 0, upAxis: 4, unitScale: 8, spaceRotation: 12 },
+  retargetIssue: { size: 8, where: 0, index: 4 },
+  retargetInfo: { size: 16, boneCount: 0, nodeCount: 4, matched: 8, workSize: 12 },
 });
+
+export const RIG_BONE_KEEP_TRANSLATION = 0x1;
+export const RETARGET_FLAGS = Object.freeze({ rootMotion: 0x1, matchDirections: 0x2 });
+export const RETARGET_ISSUES = Object.freeze(["none", "bone", "pair", "config"]);
 
 export const SAMPLE_FLAGS = Object.freeze({ world: 0x1, loop: 0x2, nearest: 0x4, contacts: 0x8 });
 

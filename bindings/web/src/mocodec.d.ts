@@ -86,6 +86,45 @@ export class Asset {
   readonly skeletons: readonly SkeletonInfo[];
   clip(which: number | string): ClipInfo;
   createInstance(): Instance;
+  /** Poses of skeleton `skeleton` onto a game rig (mcd_retarget_*). */
+  createRetarget(skeleton: number, bones: readonly RigBone[], options?: RetargetOptions): Retarget;
+}
+
+export interface RigBone {
+  name: string;
+  /** Index of the parent bone, -1 for a root; parents come first. */
+  parent: number;
+  /** Rest (bind) local transform, 10 floats (rotation x y z w, translation, scale), rig space and units. */
+  rest: ArrayLike<number>;
+  /** Always the rest translation, even for the motion root. */
+  keepTranslation?: boolean;
+}
+
+export interface RetargetOptions {
+  /** Bone name -> asset node name (null: not driven); matched before names. */
+  pairs?: Record<string, string | null>;
+  /** The motion root travels (default true); off: it moves along upAxis only. */
+  rootMotion?: boolean;
+  /** Single-child bones point where their node points (default true). */
+  matchDirections?: boolean;
+  /** 0 x, 1 y, 2 z of rig space (default 1). */
+  upAxis?: number;
+  /** Rig units per asset unit (default 1). */
+  unitScale?: number;
+  /** Asset model space to rig space, x y z w (default identity). */
+  spaceRotation?: [number, number, number, number];
+}
+
+export class Retarget {
+  readonly asset: Asset;
+  readonly boneCount: number;
+  readonly nodeCount: number;
+  /** Bones driven by a node. */
+  readonly matched: number;
+  /** The asset node driving a bone, or -1. */
+  nodeOf(bone: number): number;
+  /** The rig's local transforms for a local pose of the skeleton. */
+  apply(pose: Float32Array, out?: Float32Array): Float32Array;
 }
 
 export interface SampleOptions {

@@ -8,7 +8,9 @@
 //   const player = asset.createInstance();               // one scratch: one playing character
 //   const pose = player.sample("walk", 0.5, { world: true });  // Float32Array, 10 floats a node
 
-import { ABI, RESULT_NAMES, SAMPLE_FLAGS, NODE_KINDS } from "./abi.js";
+import {
+  ABI, RESULT_NAMES, SAMPLE_FLAGS, NODE_KINDS, RIG_BONE_KEEP_TRANSLATION, RETARGET_FLAGS, RETARGET_ISSUES,
+} from "./abi.js";
 
 export { RESULT_NAMES, NODE_KINDS };
 export const TRANSFORM_FLOATS = ABI.transform.floats;
@@ -115,6 +117,14 @@ class Memory {
     return at;
   }
 
+  placeString(text) {
+    const bytes = utf8Encoder.encode(text);
+    const at = this.alloc(bytes.byteLength + 1, 1);
+    this.u8().set(bytes, at);
+    this.u8()[at + bytes.byteLength] = 0;
+    return at;
+  }
+
   place(bytes) {
     const at = this.alloc(bytes.byteLength);
     this.u8().set(bytes, at);
@@ -134,6 +144,7 @@ class Memory {
 }
 
 const utf8 = new TextDecoder("utf-8");
+const utf8Encoder = new TextEncoder();
 const align = (n, a) => Math.ceil(n / a) * a;
 
 /** An opened asset: clips, skeletons and nodes; instances sample it. */
@@ -220,6 +231,102 @@ export class Asset {
   }
 
   _release(slot) { this._freeSlots.push(slot); }
+
+  /**
+   * Poses of skeleton `skeleton` onto a game rig (the runtime's mcd_retarget_*: rules in
+   * runtime_c/include/mocodec.h): `bones` = [{ name, parent, rest (10 floats), keepTranslation }],
+   * parents first; options: pairs ({ boneName: nodeName or null }), rootMotion, matchDirections
+   * (both on by default), upAxis (1), unitScale (1: rig units per asset unit), spaceRotation.
+   * Throws MocodecError naming the bone or pair the runtime refused. Its memory stays with the asset.
+   */
+  createRetarget(skeleton, bones, options = {}) {
+    return new Retarget(this, skeleton, bones, options);
+  }
+}
+
+/** A rig the asset's local poses are turned into (one map; its work buffer is its own). */
+export class Retarget {
+  constructor(asset, skeleton, bones, options) {
+    const mem = asset._mem, x = mem.exports, B = ABI.rigBone, C = ABI.retargetConfig;
+    if (!Array.isArray(bones)) throw new TypeError("bones must be an array of { name, parent, rest }");
+    const pairs = Object.entries(options.pairs ?? {});
+    const rig = mem.alloc(Math.max(1, bones.length) * B.size, 8);
+    const names = bones.map((b) => (typeof b.name === "string" ? mem.placeString(b.name) : 0));
+    const pairAt = mem.alloc(Math.max(1, pairs.length) * ABI.retargetPair.size, 8);
+    const pairNames = pairs.map(([bone, node]) => [mem.placeString(bone), node == null ? 0 : mem.placeString(String(node))]);
+    const config = mem.alloc(C.size, 8), issue = mem.alloc(ABI.retargetIssue.size, 8), size = mem.alloc(4, 4);
+    let v = mem.view();
+    bones.forEach((b, i) => {
+      const at = rig + i * B.size, rest = b.rest ?? [0, 0, 0, 1, 0, 0, 0, 1, 1, 1];
+      v.setUint32(at + B.name, names[i], true);
+      v.setInt32(at + B.parent, b.parent ?? -1, true);
+      v.setUint32(at + B.flags, b.keepTranslation ? RIG_BONE_KEEP_TRANSLATION : 0, true);
+      for (let k = 0; k < TRANSFORM_FLOATS; k++) v.setFloat32(at + B.rest + 4 * k, Number(rest[k]), true);
+    });
+    pairNames.forEach(([bone, node], i) => {
+      v.setUint32(pairAt + i * 8, bone, true);
+      v.setUint32(pairAt + i * 8 + 4, node, true);
+    });
+    x.mcd_retarget_config_default(config);
+    v = mem.view();
+    const flags = (options.rootMotion ?? true ? RETARGET_FLAGS.rootMotion : 0)
+      | (options.matchDirections ?? true ? RETARGET_FLAGS.matchDirections : 0);
+    v.setUint32(config + C.flags, flags, true);
+    if (options.upAxis !== undefined) v.setUint32(config + C.upAxis, options.upAxis, true);
+    if (options.unitScale !== undefined) v.setFloat32(config + C.unitScale, options.unitScale, true);
+    (options.spaceRotation ?? []).forEach((q, k) => v.setFloat32(config + C.spaceRotation + 4 * k, q, true));
+    check(asset._runtime, x.mcd_retarget_size(asset._struct, skeleton, bones.length, size), "mcd_retarget_size");
+    const mapSize = mem.view().getUint32(size, true);
+    this._map = mem.alloc(mapSize, 8);
+    const code = x.mcd_retarget_init(asset._struct, skeleton, rig, bones.length, pairAt, pairs.length, config,
+      this._map, mapSize, issue);
+    if (code !== 0) {
+      v = mem.view();
+      const where = RETARGET_ISSUES[v.getUint32(issue, true)] ?? "input", index = v.getUint32(issue + 4, true);
+      const what = where === "bone" ? `bone ${index} ${JSON.stringify(bones[index]?.name)}`
+        : where === "pair" ? `pair ${index} (${JSON.stringify(pairs[index]?.[0])} -> ${JSON.stringify(pairs[index]?.[1])})` : where;
+      throw Object.assign(new MocodecError(code, asset._runtime.resultString(code), `mcd_retarget_init: ${what}`), { where, index });
+    }
+    const info = mem.alloc(ABI.retargetInfo.size, 8), I = ABI.retargetInfo;
+    check(asset._runtime, x.mcd_retarget_get_info(this._map, info), "mcd_retarget_get_info");
+    v = mem.view();
+    this.boneCount = v.getUint32(info + I.boneCount, true);
+    this.nodeCount = v.getUint32(info + I.nodeCount, true);
+    this.matched = v.getUint32(info + I.matched, true);
+    this._workSize = v.getUint32(info + I.workSize, true);
+    this._work = mem.alloc(this._workSize, 16);
+    this._in = mem.alloc(this.nodeCount * ABI.transform.size, 16);
+    this._out = mem.alloc(this.boneCount * ABI.transform.size, 16);
+    this._node = mem.alloc(4, 4);
+    this.asset = asset;
+  }
+
+  /** The asset node driving rig bone `bone`, or -1. */
+  nodeOf(bone) {
+    const mem = this.asset._mem;
+    check(this.asset._runtime, mem.exports.mcd_retarget_get_node(this._map, bone, this._node), "mcd_retarget_get_node");
+    return mem.view().getInt32(this._node, true);
+  }
+
+  /**
+   * The rig's local transforms (boneCount x 10 floats) for a local pose of the skeleton
+   * (nodeCount x 10, as Instance.local gives it); into `out` when given (nothing allocated).
+   */
+  apply(pose, out) {
+    const mem = this.asset._mem, n = this.nodeCount * TRANSFORM_FLOATS, m = this.boneCount * TRANSFORM_FLOATS;
+    if (!(pose instanceof Float32Array) || pose.length < n) {
+      throw new MocodecError(1, "invalid argument", `apply needs a local pose of ${n} floats`);
+    }
+    if (out === undefined) out = new Float32Array(m);
+    else if (!(out instanceof Float32Array) || out.length < m) {
+      throw new MocodecError(9, "output buffer too small", `apply needs a Float32Array of ${m} floats`);
+    }
+    new Float32Array(mem.memory.buffer, this._in, n).set(pose.subarray(0, n));
+    check(this.asset._runtime, mem.exports.mcd_retarget_pose(this._map, this._in, this.nodeCount, this._out,
+      this.boneCount, this._work, this._workSize), "mcd_retarget_pose");
+    out.set(new Float32Array(mem.memory.buffer, this._out, m));
+    return out;
+  }
 }
 
 /** One playing instance: samples poses into Float32Arrays through its own scratch. */

@@ -5,7 +5,8 @@
 For every codec of the encoder's registry: one asset of two short sample clips
 (``<codec>.mcd``) and what the native C runtime (the Python binding) says about it
 (``<codec>.json``: clip and node infos, and poses at whole, fractional, clamped and looped times,
-local and world, cubic and nearest; and the encoder's error figures per clip, measured through
+local and world, cubic and nearest; a rig with other rest rotations and units, renamed bones
+and a pair, and the native retargeting of local poses onto it; and the encoder's error figures per clip, measured through
 the native runtime). A codec that cannot be encoded here (its runtime side is
 not in this build) is listed in ``skipped.json`` with the reason, for the tests to print. The
 clips' originals are written as BVH (``<clip>.bvh``) for ``mocodec view --original``.
@@ -69,7 +70,38 @@ def describe(asset: rt.Asset) -> dict:
             poses.append({"clip": c.index, "time": float(np.float32(t)), "flags": int(flags),
                           "pose": [float(v) for v in pose.ravel()]})
     return {"size": asset.size, "scratchSize": asset.scratch_size, "clips": clips,
-            "skeletons": skeletons, "poses": poses}
+            "skeletons": skeletons, "poses": poses, "retarget": retarget_case(asset)}
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+
+
+def retarget_case(asset: rt.Asset) -> dict:
+    """Skeleton 0 as a rig with every rest rotation turned (a rig from another tool), in half the
+    units, bones renamed ("rig:<name>", found by the loose match) but one, driven by a pair."""
+    turn = np.array([0.0, np.sin(0.3), 0.0, np.cos(0.3)])
+    nodes = asset.nodes(0)
+    bones = []
+    for i, n in enumerate(nodes):
+        q = _qmul(turn, np.asarray(n.rest_rotation, dtype=float)) if n.parent >= 0 else np.asarray(n.rest_rotation)
+        rest = [*map(float, q), *(0.5 * float(t) for t in n.rest_translation), *map(float, n.rest_scale)]
+        name = "PairedBone" if i == 1 else f"rig:{n.name}"
+        bones.append({"name": name, "parent": n.parent, "rest": rest})
+    options = {"pairs": {"PairedBone": nodes[1].name}, "unitScale": 0.5, "rootMotion": False}
+    r = rt.Retarget(asset, 0, [rt.RigBone(b["name"], b["parent"], tuple(b["rest"])) for b in bones],
+                    pairs=options["pairs"], unit_scale=0.5, root_motion=False)
+    clip = next(c for c in asset.clips if c.skeleton == 0)
+    cases = []
+    for t in (0.0, 0.5 * clip.duration, clip.duration):
+        local = asset.sample(clip.index, t, 0)
+        cases.append({"clip": clip.index, "time": float(np.float32(t)),
+                      "pose": [float(v) for v in r.pose(local).ravel()]})
+    return {"bones": bones, "options": options, "matched": r.matched, "nodeOf": [r.node_of(i) for i in range(len(bones))],
+            "cases": cases}
 
 
 def main(out: Path) -> int:

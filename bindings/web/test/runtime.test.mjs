@@ -124,4 +124,53 @@ for (const { codec, bytes, native } of cases) {
       }
     }
   });
+
+  test(`${codec}: retargeting onto a rig equals the native runtime's, and onto its own skeleton is the pose`, () => {
+    const asset = runtime.open(bytes);
+    const player = asset.createInstance();
+    const { bones, options, matched, nodeOf, cases: rc } = native.retarget;
+    const rig = asset.createRetarget(0, bones, options);
+    assert.equal(rig.boneCount, bones.length);
+    assert.equal(rig.matched, matched);
+    assert.deepEqual(bones.map((_, i) => rig.nodeOf(i)), nodeOf);
+    let worst = 0;
+    for (const c of rc) {
+      const out = rig.apply(player.local(c.clip, c.time));
+      for (let k = 0; k < out.length; k++) worst = Math.max(worst, Math.abs(out[k] - c.pose[k]));
+    }
+    console.log(`  ${codec}: retargeted ${rc.length} poses onto a turned, renamed, half-size rig: largest difference from native ${worst.toExponential(2)}`);
+    assert.ok(worst <= POSE_TOLERANCE, `largest difference from native ${worst}`);
+    // The asset's own skeleton as the rig: every bone gets the sampled local transform back.
+    const own = asset.skeletons[0].nodes.map((n) => ({ name: n.name, parent: n.parent,
+      rest: [...n.restRotation, ...n.restTranslation, ...n.restScale] }));
+    const self = asset.createRetarget(0, own);
+    const clip = asset.clips.find((c) => c.skeleton === 0);
+    const local = player.local(clip.index, clip.duration * 0.4);
+    const out = self.apply(local, new Float32Array(own.length * TRANSFORM_FLOATS));
+    let err = 0;
+    for (let i = 0; i < own.length; i++) {
+      if (asset.skeletons[0].nodes[i].kind === 2) continue; // virtual points match only by pair
+      const o = i * TRANSFORM_FLOATS;
+      const dot = [0, 1, 2, 3].reduce((a, k) => a + out[o + k] * local[o + k], 0);
+      err = Math.max(err, 1 - Math.abs(dot));
+      for (let k = 4; k < TRANSFORM_FLOATS; k++) err = Math.max(err, Math.abs(out[o + k] - local[o + k]) / 100);
+    }
+    console.log(`  ${codec}: onto its own skeleton: largest difference ${err.toExponential(2)}`);
+    assert.ok(err < 1e-5, `own skeleton: ${err}`);
+  });
+
+  test(`${codec}: a refused rig names the bone or pair`, () => {
+    const asset = runtime.open(bytes);
+    const nodes = asset.skeletons[0].nodes;
+    const ok = (n) => ({ name: n.name, parent: n.parent, rest: [...n.restRotation, ...n.restTranslation, ...n.restScale] });
+    const bones = nodes.map(ok);
+    bones[2] = { ...bones[2], parent: 5 };
+    assert.throws(() => asset.createRetarget(0, bones), (e) => e.codeName === "MCD_ERROR_INVALID_ARGUMENT"
+      && e.where === "bone" && e.index === 2 && e.message.includes(JSON.stringify(nodes[2].name)));
+    assert.throws(() => asset.createRetarget(0, nodes.map(ok), { pairs: { [nodes[0].name]: "no such node" } }),
+      (e) => e.codeName === "MCD_ERROR_NOT_FOUND" && e.where === "pair" && /no such node/.test(e.message));
+    assert.throws(() => asset.createRetarget(0, nodes.map(ok), { unitScale: 0 }), (e) => e.where === "config");
+    const rig = asset.createRetarget(0, nodes.map(ok));
+    assert.throws(() => rig.apply(new Float32Array(3)), (e) => e.codeName === "MCD_ERROR_INVALID_ARGUMENT");
+  });
 }

@@ -9,7 +9,11 @@ is the :class:`~mocodec.tolerance.Tolerance`; every other setting has a default)
   each clip on its own (``check(payload)``: the clip's world error through the runtime), or
 * ``encode(motions, cm_per_unit, settings, check, progress) -> CodecOutput`` for a codec whose
   section holds data the clips share (``check(i, payload, prefix)``: clip ``i`` in a one-clip
-  section that starts with ``prefix``).
+  section that starts with ``prefix``); one whose clips are still fitted one by one (``rma``)
+  also takes ``runner`` and passes it to :func:`encode_each_clip`.
+
+:func:`encode_each_clip` hands the clips to a :class:`~mocodec.bake.Runner` (this process, local
+worker processes, a Dask cluster, a cache) and collects the payloads in clip order.
 
 A codec that cannot meet the tolerance raises :class:`~mocodec.tolerance.ToleranceNotMet`.
 Only codecs whose row says ``scale`` store scale tracks; :meth:`Codec.encode` refuses a clip
@@ -26,14 +30,18 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import inspect
 from dataclasses import dataclass, field
 from types import ModuleType
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from ..motion import Motion
 from ..tolerance import Tolerance, ToleranceNotMet  # noqa: F401  (the codecs' one error type)
+
+if TYPE_CHECKING:
+    from ..bake import Runner
 
 CheckFn = Callable[..., np.ndarray]
 """``check(clip_index, payload, prefix=b"") -> (F, N)`` world position error in file units,
@@ -170,16 +178,20 @@ class Codec:
 
     def encode(self, motions: list[Motion], cm_per_unit: list[float], tolerance: Tolerance,
                check: CheckFn, options: dict[str, Any] | None = None,
-               progress: ProgressFn | None = None) -> CodecOutput:
+               progress: ProgressFn | None = None, runner: "Runner | None" = None) -> CodecOutput:
         """Encode ``motions`` (one clip each) into this codec's payloads; a codec without
-        scale tracks raises :class:`UnsupportedMotion` for a clip that animates scale."""
+        scale tracks raises :class:`UnsupportedMotion` for a clip that animates scale.
+        ``runner`` (:mod:`mocodec.bake`) runs the per-clip work (None: in this process); a
+        library codec whose ``encode`` takes no runner (its clips share a fit) ignores it."""
         settings = self.settings(tolerance, **(options or {}))
         if not self.scale:
             motions = [self._scale_free(m) for m in motions]
         if not self.per_clip:
-            return self.implementation.encode(motions, cm_per_unit, settings, check, progress)
+            encode = self.implementation.encode
+            extra = {"runner": runner} if "runner" in inspect.signature(encode).parameters else {}
+            return encode(motions, cm_per_unit, settings, check, progress, **extra)
         return encode_each_clip(self.implementation.encode_clip, motions, cm_per_unit, settings,
-                                check, progress)
+                                check, progress, runner=runner)
 
 
     def _scale_free(self, motion: Motion) -> Motion:
@@ -196,17 +208,27 @@ class Codec:
 
 def encode_each_clip(encode_clip: Callable[..., ClipResult], motions: list[Motion],
                      cm_per_unit: list[float], settings: Any, check: CheckFn,
-                     progress: ProgressFn | None = None, prefix: bytes = b"") -> CodecOutput:
+                     progress: ProgressFn | None = None, prefix: bytes = b"",
+                     runner: "Runner | None" = None) -> CodecOutput:
     """Run ``encode_clip`` on every clip (checked in a one-clip section starting with
-    ``prefix``) and collect payloads and stats."""
+    ``prefix``) through ``runner`` (None: one after the other in this process) and collect
+    payloads and stats in clip order."""
+    from ..bake import ClipJob, SerialRunner
+
+    jobs = [ClipJob(m.name, encode_clip, m, cm, settings, _clip_check(check, i, prefix), prefix)
+            for i, (m, cm) in enumerate(zip(motions, cm_per_unit))]
     out = CodecOutput(payloads=[])
-    for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, prefix))
-        out.payloads.append(r.payload)
-        out.stats.append({**r.stats, "encode_seconds": r.seconds})
-        if progress:
-            progress(m.name)
+    for o in (runner or SerialRunner()).run(jobs, progress):
+        out.payloads.append(o.payload)
+        out.stats.append({**o.stats, "encode_seconds": o.seconds, **({"cached": True} if o.cached else {})})
     return out
+
+
+def _clip_check(check: CheckFn, i: int, prefix: bytes) -> Callable[[bytes], np.ndarray]:
+    """Clip ``i``'s check alone; one that pickles (for worker processes) when ``check`` can
+    make one (:meth:`mocodec.encode.RuntimeCheck.one_clip`)."""
+    one_clip = getattr(check, "one_clip", None)
+    return one_clip(i, prefix) if one_clip else (lambda payload, **how: check(i, payload, prefix, **how))
 
 
 CODECS: tuple[Codec, ...] = (

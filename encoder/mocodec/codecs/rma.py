@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
 from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
 from .rma_bitstream import GROUP_SHIFTS, CurveTrack, payload
+
+if TYPE_CHECKING:
+    from ..bake import Runner
 
 SECTION_HEADER = 16
 
@@ -129,9 +133,10 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
 
 
 def encode(motions: list[Motion], cm_per_unit: list[float], settings: RMASettings,
-           check: CheckFn, progress: ProgressFn | None = None) -> CodecOutput:
-    """Encode a library: every clip into one ``RMAL`` section."""
+           check: CheckFn, progress: ProgressFn | None = None, runner: "Runner | None" = None) -> CodecOutput:
+    """Encode a library: every clip into one ``RMAL`` section (the clips fitted by ``runner``,
+    :mod:`mocodec.bake`, the section assembled here)."""
     out = encode_each_clip(encode_clip, motions, cm_per_unit, settings, check, progress,
-                           prefix=section_prefix(1))
+                           prefix=section_prefix(1), runner=runner)
     out.section_prefix = section_prefix(len(out.payloads))
     return out

@@ -2,9 +2,12 @@
 
 The reader accepts every layout BVH allows (any channel and rotation order, position channels on
 any joint, several roots, ``CHANNELS 0``, CRLF, tabs) and turns bad input into a
-:class:`BVHError` that names the file, the 1-based line and the fault. The ``MOTION`` block is
-converted in one pass (split, count per line, one float conversion); lines are only scanned one
-by one to locate an error.
+:class:`BVHError` that names the file, the 1-based line and the fault. The format's limits
+(:mod:`mocodec.limits`: nodes, names, frames, frame rate, values) are checked where the value is
+read, before anything is allocated for it, and only regular files of bounded size are read
+(:mod:`mocodec.io.files`). The ``MOTION`` block is converted in chunks of lines (split, count
+per line, one float conversion each), so the text's tokens never all exist at once; lines are
+only scanned one by one to locate an error.
 """
 from __future__ import annotations
 
@@ -16,12 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton, unique_name
+from ..output import atomic_open
+from .files import read_regular_file
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
 
 _FRAMES_RE = re.compile(r"Frames\s*:\s*(.*)")
 _FRAME_TIME_RE = re.compile(r"Frame\s+Time\s*:\s*(.*)")
+_CHUNK_VALUES = 1 << 16  # frame values split and converted at a time (a few MB of str objects)
+
+
+def _show(text: str, limit: int = 40) -> str:
+    """``text`` quoted for a message: escapes for what a terminal would act on, at most
+    ``limit`` characters (a garbage file can hold a line of megabytes)."""
+    return repr(text if len(text) <= limit else text[:limit] + "...")
 
 
 class BVHError(ValueError):
@@ -44,7 +57,7 @@ class BVHError(ValueError):
         super().__init__(str(self))
 
     def __str__(self) -> str:
-        where = [str(part) for part in (self.path, self.line) if part is not None]
+        where = [limits.printable(str(part)) for part in (self.path, self.line) if part is not None]
         return ": ".join([":".join(where), self.message]) if where else self.message
 
     def __reduce__(self):  # keep pickling (multiprocessing) working with the extra fields
@@ -53,13 +66,11 @@ class BVHError(ValueError):
 
 # ------------------------------------------------------------------------------- reading
 def read_bvh(path: str | os.PathLike) -> Motion:
-    """Read a BVH file; the clip is named after the file stem."""
+    """Read a BVH file (a regular file: a FIFO, a device or a folder is refused before it is
+    read); the clip is named after the file stem (:func:`mocodec.limits.safe_clip_name`)."""
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
-    motion = parse_bvh(data, path=str(path), name=path.stem)
+    data = read_regular_file(path, "BVH file", lambda message: BVHError(message, str(path)))
+    motion = parse_bvh(data, path=str(path), name=limits.safe_clip_name(path.stem))
     motion.source = {"format": "bvh", "file": str(path)}
     return motion
 
@@ -84,7 +95,7 @@ def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = Non
     if isinstance(text, (bytes, bytearray, memoryview)):
         text = _decode(bytes(text), path)
     if name is None:
-        name = Path(path).stem if path else "clip"
+        name = limits.safe_clip_name(Path(path).stem) if path else "clip"
     # Only \n and \r end lines (str.splitlines would also split on form feeds and the like,
     # and the line numbers would no longer match an editor's).
     text = text.replace("\r\n", "\n").replace("\r", "\n").removeprefix("\ufeff")
@@ -99,6 +110,7 @@ def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = Non
     skeleton, motion_line = hierarchy.parse()
     frames, frame_time, data_start = _parse_motion_header(lines, motion_line, path)
     channels = _parse_frames(lines, data_start, frames, skeleton.channel_count, path)
+    del lines, text  # the text is not needed for the motion (memory on long clips)
     return Motion.from_channels(skeleton, channels, frame_time, name)
 
 
@@ -168,7 +180,7 @@ class _HierarchyParser:
             if not tokens:
                 continue
             if tokens != ["HIERARCHY"]:
-                raise self.error(k + 1, f"expected HIERARCHY, found {line.strip()[:40]!r}")
+                raise self.error(k + 1, f"expected HIERARCHY, found {_show(line.strip())}")
             return k
         raise BVHError("empty file", self.path, 1 if self.lines else None)
 
@@ -176,7 +188,7 @@ class _HierarchyParser:
         if self.pending is not None and tokens[0] != "{":
             node = self.nodes[self.pending]
             raise self.error(line, f"expected '{{' after {self._describe(node)}, "
-                                   f"found {tokens[0]!r}")
+                                   f"found {_show(tokens[0])}")
         head = tokens[0]
         if all(t in ("{", "}") for t in tokens):
             for t in tokens:
@@ -193,7 +205,7 @@ class _HierarchyParser:
         elif head == "CHANNELS":
             self._channels(line, tokens)
         else:
-            raise self.error(line, f"unexpected {head!r} in HIERARCHY")
+            raise self.error(line, f"unexpected {_show(head)} in HIERARCHY")
 
     def _header_brace(self, tokens: list[str]) -> tuple[list[str], bool]:
         """Split a trailing ``{`` (separate or glued to the name) off a header line."""
@@ -204,6 +216,9 @@ class _HierarchyParser:
         return tokens, False
 
     def _add(self, node: _Node, brace: bool) -> None:
+        if len(self.nodes) >= limits.MAX_NODES:
+            raise self.error(node.line, f"more than {limits.MAX_NODES:,} nodes (joints and end sites): "
+                                        "the format's limit")
         self.nodes.append(node)
         if node.parent >= 0:
             self.nodes[node.parent].children += 1
@@ -217,6 +232,9 @@ class _HierarchyParser:
         if len(tokens) < 2:
             raise self.error(line, f"{keyword} without a name")
         name = " ".join(tokens[1:])
+        problem = limits.name_problem(name)
+        if problem:
+            raise self.error(line, f"{keyword}: {problem}")
         if keyword == "ROOT" and self.stack:
             raise self.error(line, f"ROOT {name!r} inside {self._describe(self._top())}; "
                                    "a '}' is missing?")
@@ -236,7 +254,7 @@ class _HierarchyParser:
     def _end_site(self, line: int, tokens: list[str]) -> None:
         tokens, brace = self._header_brace(tokens)
         if len(tokens) > 2:
-            raise self.error(line, f"unexpected {' '.join(tokens[2:])!r} after End Site")
+            raise self.error(line, f"unexpected {_show(' '.join(tokens[2:]))} after End Site")
         if not self.stack:
             raise self.error(line, "End Site outside any joint")
         if self._top().end_site:
@@ -265,9 +283,10 @@ class _HierarchyParser:
             raise self.error(line, f"OFFSET needs 3 numbers, got {len(tokens) - 1}")
         for t in tokens[1:]:
             if not _is_number(t):
-                raise self.error(line, f"OFFSET value {t!r} is not a number")
-            if not np.isfinite(float(t)):
-                raise self.error(line, f"OFFSET value {t!r} is not finite")
+                raise self.error(line, f"OFFSET value {_show(t)} is not a number")
+            found = limits.value_problem(np.array([float(t)]))
+            if found:
+                raise self.error(line, f"OFFSET value {_show(t)} {found[1]}")
         node.offset = (float(tokens[1]), float(tokens[2]), float(tokens[3]))
 
     def _channels(self, line: int, tokens: list[str]) -> None:
@@ -280,7 +299,7 @@ class _HierarchyParser:
             raise self.error(line, f"CHANNELS of {self._describe(node)} must come before "
                                    "its child joints")
         if len(tokens) < 2 or not tokens[1].isdigit():
-            found = repr(tokens[1]) if len(tokens) > 1 else "nothing"
+            found = _show(tokens[1]) if len(tokens) > 1 else "nothing"
             raise self.error(line, f"CHANNELS needs a channel count, found {found}")
         count = int(tokens[1])
         names = tokens[2:]
@@ -290,7 +309,7 @@ class _HierarchyParser:
         codes = []
         for ch in names:
             if ch not in CHANNEL_CODES:
-                raise self.error(line, f"unknown channel {ch!r} (expected one of "
+                raise self.error(line, f"unknown channel {_show(ch)} (expected one of "
                                        f"{', '.join(CHANNEL_NAMES)})")
             if CHANNEL_CODES[ch] in codes:
                 raise self.error(line, f"duplicate channel {ch!r} in {self._describe(node)}")
@@ -313,7 +332,7 @@ class _HierarchyParser:
 
     def _finish_hierarchy(self, line: int, tokens: list[str]) -> None:
         if len(tokens) > 1:
-            raise self.error(line, f"unexpected {' '.join(tokens[1:])!r} after MOTION")
+            raise self.error(line, f"unexpected {_show(' '.join(tokens[1:]))} after MOTION")
         node = self._innermost()
         if node is not None:
             raise self.error(line, f"MOTION before the end of {self._describe(node)} "
@@ -349,7 +368,9 @@ def _end_site_names(nodes: list[_Node]) -> list[str]:
     names = []
     for n in nodes:
         if n.end_site:
-            names.append(unique_name(f"{nodes[n.parent].name}_End", used, sep=""))
+            # Cut so the name keeps to the format's 255 bytes with room for a number.
+            base = limits.truncate_utf8(nodes[n.parent].name, limits.MAX_NAME_BYTES - 10) + "_End"
+            names.append(unique_name(base, used, sep=""))
         else:
             names.append(n.name)
     return names
@@ -371,32 +392,35 @@ def _parse_motion_header(lines: list[str], motion_line: int,
     match = _FRAMES_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
     if match is None:
         raise BVHError("missing 'Frames:' line after MOTION", path, min(k + 1, len(lines)))
-    try:
-        frames = int(match.group(1))
-    except ValueError:
-        raise BVHError(f"'Frames:' needs a whole number, got {match.group(1)!r}", path,
+    text = match.group(1).strip()
+    if not re.fullmatch(r"[+-]?\d{1,20}", text):
+        raise BVHError(f"'Frames:' needs a whole number, got {_show(match.group(1))}", path,
                        k + 1) from None
-    if frames <= 0:
-        raise BVHError(f"'Frames: {frames}': a clip needs at least one frame", path, k + 1)
+    frames = int(text)
+    problem = limits.frames_problem(frames)
+    if problem:
+        raise BVHError(f"'Frames: {frames}': {problem}", path, k + 1)
     k = _next_statement(lines, k + 1)
     match = _FRAME_TIME_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
     if match is None:
         raise BVHError("missing 'Frame Time:' line after 'Frames:'", path,
                        min(k + 1, len(lines)))
-    try:
-        frame_time = float(match.group(1))
-    except ValueError:
-        raise BVHError(f"'Frame Time:' needs a number of seconds, got {match.group(1)!r}",
+    if not _is_number(match.group(1)):
+        raise BVHError(f"'Frame Time:' needs a number of seconds, got {_show(match.group(1))}",
                        path, k + 1) from None
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise BVHError(f"'Frame Time: {match.group(1)}' must be a positive number of seconds",
-                       path, k + 1)
+    frame_time = float(match.group(1))
+    problem = limits.frame_time_problem(frame_time, frames)
+    if problem:
+        raise BVHError(f"'Frame Time: {match.group(1).strip()[:40]}': {problem}", path, k + 1)
     return frames, frame_time, k + 1
 
 
 def _parse_frames(lines: list[str], start: int, frames: int, width: int,
                   path: str | None) -> np.ndarray:
-    """The ``(frames, width)`` channel values from the frame lines from ``start`` on."""
+    """The ``(frames, width)`` channel values from the frame lines from ``start`` on, each
+    within the format's +-1e7. Lines are converted about :data:`_CHUNK_VALUES` values at a time
+    into one array no larger than the lines present (``Frames:`` may promise more than the file
+    holds)."""
     rows_at = [k for k in range(start, len(lines)) if lines[k] and not lines[k].isspace()]
     if width == 0:
         # A hierarchy without channels has empty frame lines; anything else is an error.
@@ -404,15 +428,38 @@ def _parse_frames(lines: list[str], start: int, frames: int, width: int,
             raise BVHError("frame line has values but the hierarchy has no channels", path,
                            rows_at[0] + 1)
         return np.zeros((frames, 0))
-    rows = [lines[k].split() for k in rows_at[:frames]]
-    counts = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
-    bad = np.flatnonzero(counts != width)
-    if bad.size:
-        i = int(bad[0])
-        hint = ("; the file may be truncated"
-                if i == len(rows_at) - 1 and counts[i] < width else "")
-        raise BVHError(f"frame {i + 1} of {frames}: expected {width} values, got "
-                       f"{counts[i]}{hint}", path, rows_at[i] + 1)
+    present = min(frames, len(rows_at))
+    values = np.empty((present, width))
+    chunk_lines = max(1, _CHUNK_VALUES // width)
+    for first in range(0, present, chunk_lines):
+        at = rows_at[first:min(first + chunk_lines, present)]
+        rows = [lines[k].split() for k in at]
+        counts = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+        bad = np.flatnonzero(counts != width)
+        if bad.size:
+            i = int(bad[0])
+            hint = ("; the file may be truncated"
+                    if first + i == len(rows_at) - 1 and counts[i] < width else "")
+            raise BVHError(f"frame {first + i + 1} of {frames}: expected {width} values, got "
+                           f"{counts[i]}{hint}", path, at[i] + 1)
+        try:
+            # float() also takes '1_000'; no BVH writer emits that, so treat it as garbage.
+            if any("_" in lines[k] for k in at):
+                raise ValueError
+            chunk = np.fromiter(map(float, itertools.chain.from_iterable(rows)), dtype=np.float64,
+                                count=len(rows) * width).reshape(len(rows), width)
+        except ValueError:
+            # The slow scan runs only to say where the bad value is.
+            i, j = next((i, j) for i, row in enumerate(rows)
+                        for j, token in enumerate(row) if not _is_number(token))
+            raise BVHError(f"frame {first + i + 1} of {frames}, value {j + 1}: {_show(rows[i][j])} is "
+                           "not a number", path, at[i] + 1) from None
+        found = limits.value_problem(chunk)
+        if found:
+            (i, j), reason = found
+            raise BVHError(f"frame {first + i + 1} of {frames}, value {j + 1}: {_show(rows[i][j])} "
+                           f"{reason}", path, at[i] + 1)
+        values[first:first + len(rows)] = chunk
     if len(rows_at) < frames:
         after = rows_at[-1] + 2 if rows_at else start + 1
         raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {len(rows_at)} frame "
@@ -421,24 +468,6 @@ def _parse_frames(lines: list[str], start: int, frames: int, width: int,
         raise BVHError(f"more frame lines than 'Frames: {frames}' (extra line with "
                        f"{len(lines[rows_at[frames]].split())} values)", path,
                        rows_at[frames] + 1)
-    flat = itertools.chain.from_iterable(rows)
-    try:
-        # float() also takes '1_000'; no BVH writer emits that, so treat it as garbage.
-        if any("_" in lines[k] for k in rows_at):
-            raise ValueError
-        values = np.fromiter(map(float, flat), dtype=np.float64, count=frames * width)
-    except ValueError:
-        # The slow scan runs only to say where the bad value is.
-        i, j = next((i, j) for i, row in enumerate(rows)
-                    for j, token in enumerate(row) if not _is_number(token))
-        raise BVHError(f"frame {i + 1} of {frames}, value {j + 1}: {rows[i][j]!r} is not a "
-                       "number", path, rows_at[i] + 1) from None
-    values = values.reshape(frames, width)
-    finite = np.isfinite(values)
-    if not finite.all():
-        i, j = (int(x) for x in np.argwhere(~finite)[0])
-        raise BVHError(f"frame {i + 1} of {frames}, value {j + 1}: {rows[i][j]!r} is not "
-                       "finite", path, rows_at[i] + 1)
     return values
 
 
@@ -519,9 +548,10 @@ def format_bvh(motion: Motion, precision: int = 6, reference: np.ndarray | None 
 
 def write_bvh(motion: Motion, path: str | os.PathLike, precision: int = 6,
               reference: np.ndarray | None = None) -> None:
-    """Write ``motion`` to a BVH file (see :func:`format_bvh`)."""
+    """Write ``motion`` to a BVH file (see :func:`format_bvh`), atomically: the file at
+    ``path`` is replaced only once the whole text is on disk."""
     text = format_bvh(motion, precision, reference)
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
+    with atomic_open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(text)
 
 

@@ -24,9 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import limits
 from .. import rotations as R
 from ..kinematics import forward_kinematics
 from ..motion import Motion, Skeleton, unique_name
+from .files import read_regular_file
 
 __all__ = ["GLTFError", "DEFAULT_RATE", "read_gltf", "gltf_rest_pose"]
 
@@ -70,14 +72,14 @@ def _load_document(path: Path):
         from pygltflib import GLTF2
     except ImportError:  # pragma: no cover - a broken install
         raise GLTFError("reading glTF needs pygltflib (pip install pygltflib)", str(path)) from None
-    if not path.is_file():
-        raise GLTFError("no such file", str(path))
+    data = read_regular_file(path, "glTF file", lambda message: GLTFError(message, str(path)))
     try:
-        with open(path, "rb") as f:
-            head = f.read(4)
         with warnings.catch_warnings():  # pygltflib warns and goes on; a fault is ours to report
             warnings.simplefilter("ignore")
-            doc = GLTF2().load_binary(str(path)) if head == b"glTF" else GLTF2().load_json(str(path))
+            if data[:4] == b"glTF":
+                doc = GLTF2.load_from_bytes(data)
+            else:
+                doc = GLTF2.gltf_from_json(data.decode("utf-8"))
     except GLTFError:
         raise
     except Exception as exc:  # pygltflib raises whatever its parser meets
@@ -128,11 +130,8 @@ class _Reader:
                 raise self.error(item, "its data: URI is not valid base64") from None
         else:
             target = self.path.parent / urllib.parse.unquote(uri)
-            try:
-                data = target.read_bytes()
-            except OSError as exc:
-                raise self.error(f"{item} ({uri})", f"cannot read the buffer file "
-                                                    f"({exc.strerror or exc}; missing buffer)") from None
+            data = read_regular_file(target, "buffer file", lambda message: self.error(
+                f"{item} ({uri})", f"the buffer file: {message} (missing buffer)"))
         length = buf.byteLength
         if not isinstance(length, int) or length < 0:
             raise self.error(item, f"byteLength {length!r} is not a length")
@@ -592,6 +591,9 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
     animated = {c.node for _, chans in clips_kept for c in chans}
     layout = _layout(doc, path, animated)
     sk = layout.skeleton
+    if sk.node_count > limits.MAX_NODES:
+        raise GLTFError(f"{sk.node_count:,} nodes to animate (joints, end points); the format allows at most "
+                        f"{limits.MAX_NODES:,}", str(path), "nodes")
     index = {g: k for k, g in enumerate(layout.gltf_nodes)}
     motions = []
     for a, chans in clips_kept:
@@ -602,6 +604,10 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
         # Frames up to the last key (a frame at or just past it; float32 key times may miss
         # the grid by a few ulps).
         frames = int(math.ceil((t1 - t0) * clip_rate - 1e-3)) + 1
+        problem = limits.frames_problem(frames) or limits.frame_rate_problem(clip_rate)
+        if problem:  # before the (frames, nodes) arrays exist
+            raise GLTFError(f"keys from {t0:g} s to {t1:g} s at {clip_rate:g} Hz: {problem}", str(path),
+                            f"animation {a}")
         times = t0 + np.arange(frames) / clip_rate
         n = sk.node_count
         rot = np.broadcast_to(sk.rest_rotations, (frames, n, 4)).copy()

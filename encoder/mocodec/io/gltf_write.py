@@ -18,6 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from ..motion import Motion, Skeleton
+from ..output import write_atomic
 from ..rotations import quat_make_continuous, quat_to_matrix
 
 __all__ = ["gltf_document", "write_gltf"]
@@ -146,13 +147,13 @@ def write_gltf(path: str | os.PathLike, skeletons: Sequence[Skeleton],
                clips: Sequence[tuple[int, Motion, float]],
                skin_joints: dict[int, list[int]] | None = None) -> None:
     """Write :func:`gltf_document` to ``path``: binary glTF for ``.glb``, else JSON with the
-    buffer embedded as a ``data:`` URI."""
+    buffer embedded as a ``data:`` URI; atomically (:func:`mocodec.output.write_atomic`)."""
     doc = gltf_document(skeletons, clips, skin_joints)
     path = Path(path)
     if path.suffix.lower() == ".glb":
-        doc.save_binary(str(path))
+        write_atomic(path, b"".join(doc.save_to_bytes()))
         return
     data = doc.binary_blob()
     doc.buffers[0].uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
     doc.destroy_binary_blob()
-    doc.save_json(str(path))
+    write_atomic(path, doc.gltf_to_json())

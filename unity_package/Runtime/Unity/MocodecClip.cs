@@ -31,7 +31,8 @@ namespace Mocodec.Unity
             get
             {
                 if (m_Asset == null || m_Asset.IsDisposed)
-                    m_Asset = MocodecAsset.Load(m_Bytes);
+                    // the importer validated these very bytes; a rejected file is validated (and refused) again
+                    m_Asset = MocodecAsset.Load(m_Bytes, m_ImportError.Length == 0 ? ValidateFlags.Prevalidated : ValidateFlags.None);
                 return m_Asset;
             }
         }

@@ -1,15 +1,19 @@
-// Compiled only inside Unity (needs UnityEngine).
+// Compiled only inside Unity (needs UnityEngine); playback, retargeting and the space
+// conversion are the engine-free core (MocodecPlayback), tested under mono.
 using System.Collections.Generic;
 using UnityEngine;
 
 namespace Mocodec.Unity
 {
     /// <summary>
-    /// Plays one clip of a <see cref="MocodecClip"/> on a Transform hierarchy whose objects are
-    /// named like the asset's joints. Samples once per frame into a buffer allocated at bind
-    /// time, so playback allocates nothing. Runs in LateUpdate so it wins over an Animator on the
-    /// same hierarchy. Contact IK is whatever the runtime applies in mcd_sample (the codecs that
-    /// store contacts rectify them there); the runtime has no switch for it to expose here.
+    /// Plays one clip of a <see cref="MocodecClip"/> on a character's Transform hierarchy, through
+    /// the runtime's retargeting: bones matched to the asset's joints by name (exact, then
+    /// ignoring a namespace such as "mixamorig:", case and separators), posed against their own
+    /// rest (their local transforms when the player binds) so rigs from FBX or glTF with other
+    /// rest orientations and proportions are posed right. Samples once per frame into buffers
+    /// allocated at bind time, so playback allocates nothing. Runs in LateUpdate, so it wins over
+    /// an Animator on the same hierarchy; to blend with the Animator instead, use
+    /// <see cref="MocodecAnimatorDriver"/>.
     /// </summary>
     [AddComponentMenu("Mocodec/Mocodec Player")]
     [DisallowMultipleComponent]
@@ -21,86 +25,88 @@ namespace Mocodec.Unity
         [Tooltip("Clip name inside the asset; empty plays the first clip.")]
         public string clipName = "";
 
-        [Tooltip("Top of the hierarchy searched for joint names; this object when empty.")]
+        [Tooltip("Top of the rig: every Transform below it is a bone (this object when empty). Its local pose at bind time is the rest pose.")]
         public Transform skeletonRoot;
 
         public bool playOnEnable = true;
         public bool loop = true;
         [Tooltip("Pull feet (and hands) back onto their recorded contacts by IK, for assets encoded with --contacts; no effect on other assets.")]
         public bool contactIK = true;
+        [Tooltip("The hips travel across the floor; off: they stay over their rest spot (height still moves).")]
+        public bool rootMotion = true;
+        [Tooltip("Bones with one child point where the asset's bones point, for rigs whose rest is not the asset's (A-pose against T-pose).")]
+        public bool matchBoneDirections = true;
         [Tooltip("Playback rate; negative plays backwards.")]
         public float speed = 1f;
         [Tooltip("Current time in seconds.")]
         public float time;
 
-        [Tooltip("Write joint translations too (bone lengths of the recording). Off: only the root moves, other joints only rotate, for rigs with their own proportions.")]
-        public bool writeJointTranslations = true;
+        MocodecPlayback m_Playback;
+        readonly List<Transform> m_Bones = new List<Transform>();
+        bool[] m_Driven;
 
-        MocodecContext m_Context;
-        MocodecTransform[] m_Pose;
-        Transform[] m_Targets;
-        int m_Clip = -1;
-        float m_Duration;
-        float m_MetresPerUnit;
-        bool m_Playing;
+        public bool IsPlaying { get { return m_Playback != null && m_Playback.Playing; } }
+        public float Duration { get { return m_Playback != null ? m_Playback.Duration : 0f; } }
 
-        public bool IsPlaying { get { return m_Playing; } }
-        public float Duration { get { return m_Duration; } }
-
-        public void Play() { m_Playing = true; }
-        public void Pause() { m_Playing = false; }
+        public void Play() { if (m_Playback != null) m_Playback.Playing = true; }
+        public void Pause() { if (m_Playback != null) m_Playback.Playing = false; }
 
         public void Stop()
         {
-            m_Playing = false;
+            Pause();
             time = 0f;
             Evaluate();
         }
 
-        /// <summary>Re-resolves the clip and the joint-to-Transform mapping (after changing
-        /// <see cref="clip"/>, <see cref="clipName"/> or the hierarchy).</summary>
+        /// <summary>Re-resolves the clip and the rig (after changing <see cref="clip"/>,
+        /// <see cref="clipName"/>, the settings or the hierarchy). The bones' current local
+        /// transforms become the rest pose.</summary>
         public void Bind()
         {
             Unbind();
             if (clip == null)
                 return;
             MocodecAsset asset = clip.Asset;
-            m_Clip = string.IsNullOrEmpty(clipName) ? 0 : asset.FindClip(clipName);
-            ClipInfo info = asset.GetClipInfo(m_Clip);
-            m_Duration = info.Duration;
-            m_MetresPerUnit = asset.GetSkeletonInfo(info.Skeleton).CmPerUnit * 0.01f;
-            m_Pose = new MocodecTransform[info.NodeCount];
-            m_Targets = new Transform[info.NodeCount];
-
-            Dictionary<string, Transform> byName = new Dictionary<string, Transform>();
-            foreach (Transform t in (skeletonRoot != null ? skeletonRoot : transform).GetComponentsInChildren<Transform>(true))
-                if (!byName.ContainsKey(t.name))
-                    byName.Add(t.name, t);
-            string[] names = asset.GetNodeNames(info.Skeleton);
+            int index = string.IsNullOrEmpty(clipName) ? 0 : asset.FindClip(clipName);
+            RigBone[] rig = MocodecRig.FromHierarchy(skeletonRoot != null ? skeletonRoot : transform, m_Bones);
+            if (rig.Length == 0)
+            {
+                Debug.LogWarning("MocodecPlayer: " + name + " has no child Transforms to pose", this);
+                return;
+            }
+            RetargetSettings settings = RetargetSettings.Default;
+            settings.RootMotion = rootMotion;
+            settings.MatchDirections = matchBoneDirections;
+            settings.UnitScale = MocodecSpace.MetresPerUnit(asset.GetSkeletonInfo(asset.GetClipInfo(index).Skeleton));
+            m_Playback = new MocodecPlayback(asset, index, rig, true, settings);
+            m_Driven = new bool[rig.Length];
             int found = 0;
-            for (int i = 0; i < names.Length; i++)
-                if (byName.TryGetValue(names[i], out m_Targets[i]))
+            for (int i = 0; i < rig.Length; i++)
+                if (m_Driven[i] = m_Playback.Retarget.NodeOf(i) >= 0)
                     found++;
             if (found == 0)
                 Debug.LogWarning("MocodecPlayer: no Transform under " + name + " is named like a joint of " + clip.name, this);
-            m_Context = asset.CreateContext();
         }
 
-        /// <summary>Samples the clip at <see cref="time"/> and writes the pose.</summary>
+        /// <summary>Samples the clip at <see cref="time"/> and writes the driven bones.</summary>
         public void Evaluate()
         {
-            if (m_Context == null)
+            if (m_Playback == null)
                 return;
-            SampleFlags flags = (loop ? SampleFlags.Loop : SampleFlags.None) | (contactIK ? SampleFlags.Contacts : SampleFlags.None);
-            m_Context.Sample(m_Clip, time, m_Pose, flags);
-            for (int i = 0; i < m_Targets.Length; i++)
+            m_Playback.Tick(time, speed, loop, contactIK, 0f);
+            WritePose();
+        }
+
+        void WritePose()
+        {
+            MocodecTransform[] pose = m_Playback.RigPose;
+            for (int i = 0; i < m_Bones.Count; i++)
             {
-                Transform target = m_Targets[i];
-                if (target == null)
+                if (!m_Driven[i])
                     continue;
-                target.localRotation = MocodecUnitySpace.Rotation(m_Pose[i]);
-                if (i == 0 || writeJointTranslations)
-                    target.localPosition = MocodecUnitySpace.Position(m_Pose[i], m_MetresPerUnit);
+                m_Bones[i].localRotation = MocodecRig.Rotation(pose[i]);
+                m_Bones[i].localPosition = MocodecRig.Position(pose[i]);
+                m_Bones[i].localScale = MocodecRig.Scale(pose[i]);
             }
         }
 
@@ -108,7 +114,7 @@ namespace Mocodec.Unity
         {
             Bind();
             if (playOnEnable)
-                m_Playing = true;
+                Play();
         }
 
         void OnDisable()
@@ -118,33 +124,19 @@ namespace Mocodec.Unity
 
         void LateUpdate()
         {
-            if (m_Context == null)
+            if (m_Playback == null)
                 return;
-            if (m_Playing)
-            {
-                time += Time.deltaTime * speed;
-                if (!loop && ((speed > 0f && time >= m_Duration) || (speed < 0f && time <= 0f)))
-                {
-                    time = Mathf.Clamp(time, 0f, m_Duration);
-                    m_Playing = false;
-                }
-                else if (loop)
-                {
-                    // Keep the number small so float time stays precise in long sessions.
-                    time = Mathf.Repeat(time, m_Duration > 0f ? m_Duration : 1f);
-                }
-            }
-            Evaluate();
+            time = m_Playback.Tick(time, speed, loop, contactIK, Time.deltaTime);
+            WritePose();
         }
 
         void Unbind()
         {
-            if (m_Context != null)
-                m_Context.Dispose();
-            m_Context = null;
-            m_Pose = null;
-            m_Targets = null;
-            m_Clip = -1;
+            if (m_Playback != null)
+                m_Playback.Dispose();
+            m_Playback = null;
+            m_Driven = null;
+            m_Bones.Clear();
         }
     }
 }

@@ -20,9 +20,10 @@ namespace Mocodec.Tests
             Assert.That((v >> 8) & 0xFF, Is.EqualTo(MocodecRuntime.ExpectedMinor));
         }
 
-        [TestCase(0x000100u, true)]
-        [TestCase(0x000107u, true)]
-        [TestCase(0x000200u, false)]
+        [TestCase(0x000200u, true)]
+        [TestCase(0x000207u, true)]
+        [TestCase(0x000100u, false)]
+        [TestCase(0x000300u, false)]
         [TestCase(0x000000u, false)]
         [TestCase(0x010100u, false)]
         public void VersionPolicy(uint version, bool compatible)
@@ -44,7 +45,12 @@ namespace Mocodec.Tests
                 { "mcd_clip_info", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeClipInfo", true) },
                 { "mcd_skeleton_info", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeSkeletonInfo", true) },
                 { "mcd_node_info", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeNodeInfo", true) },
-                { "mcd_transform", typeof(MocodecTransform) }
+                { "mcd_transform", typeof(MocodecTransform) },
+                { "mcd_rig_bone", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeRigBone", true) },
+                { "mcd_retarget_pair", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeRetargetPair", true) },
+                { "mcd_retarget_config", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeRetargetConfig", true) },
+                { "mcd_retarget_issue", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeRetargetIssue", true) },
+                { "mcd_retarget_info", typeof(MocodecAsset).Assembly.GetType("Mocodec.NativeRetargetInfo", true) }
             };
             int checkedLines = 0;
             foreach (string line in File.ReadAllLines(path))
@@ -90,8 +96,10 @@ namespace Mocodec.Tests
                             Assert.That(node.Parent, Is.LessThan(n), "parents come first");
                             Assert.That(node.Parent == -1, Is.EqualTo(n == 0), "one root, first");
                             int channels = node.Channels.Length;
-                            Assert.That(node.IsEndSite ? channels == 0 : channels == 3 || channels == 6,
+                            Assert.That(node.Kind != MocodecNodeKind.Joint ? channels == 0 : channels == 0 || channels == 3 || channels == 6,
                                         name + " " + node.Name + " has " + channels + " channels");
+                            double norm = node.Rest.Qx * node.Rest.Qx + node.Rest.Qy * node.Rest.Qy + node.Rest.Qz * node.Rest.Qz + node.Rest.Qw * node.Rest.Qw;
+                            Assert.That(norm, Is.EqualTo(1.0).Within(1e-4), "unit rest rotation");
                         }
                     }
                 }

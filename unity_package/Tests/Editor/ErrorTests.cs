@@ -49,9 +49,10 @@ namespace Mocodec.Tests
         public void FormatTooNewAndTooOld()
         {
             byte[] b = Golden();
-            b[8] = 2; // version_major, outside the checksummed range
+            b[8] = 3; // version_major (the runtime reads 2), outside the checksummed range
             ExpectLoadFailure(b, MocodecResult.VersionTooNew);
-            b[8] = 0;
+            b[8] = 1; // format 1 (mocodec 0.1) is refused as too old
+            ExpectLoadFailure(b, MocodecResult.VersionTooOld);
             ExpectLoadFailure(b, MocodecResult.VersionTooOld);
         }
 

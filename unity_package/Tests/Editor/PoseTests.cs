@@ -74,7 +74,7 @@ namespace Mocodec.Tests
                             asset.Sample(c, f / clip.FrameRate, pose, flags);
                             foreach (MocodecTransform t in pose)
                             {
-                                float sum = t.Qx + t.Qy + t.Qz + t.Qw + t.Tx + t.Ty + t.Tz;
+                                float sum = t.Qx + t.Qy + t.Qz + t.Qw + t.Tx + t.Ty + t.Tz + t.Sx + t.Sy + t.Sz;
                                 Assert.That(!float.IsNaN(sum) && !float.IsInfinity(sum), "finite pose");
                                 double norm = t.Qx * t.Qx + t.Qy * t.Qy + t.Qz * t.Qz + t.Qw * t.Qw;
                                 Assert.That(norm, Is.EqualTo(1.0).Within(1e-4), "unit quaternion");

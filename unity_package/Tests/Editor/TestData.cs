@@ -93,10 +93,11 @@ namespace Mocodec.Tests
                     };
                     continue;
                 }
-                Assert.That(f.Length, Is.EqualTo(7), "pose row: " + line);
+                Assert.That(f.Length, Is.EqualTo(10), "pose row (qx qy qz qw tx ty tz sx sy sz): " + line);
                 MocodecTransform t;
                 t.Qx = Parse(f[0]); t.Qy = Parse(f[1]); t.Qz = Parse(f[2]); t.Qw = Parse(f[3]);
                 t.Tx = Parse(f[4]); t.Ty = Parse(f[5]); t.Tz = Parse(f[6]);
+                t.Sx = Parse(f[7]); t.Sy = Parse(f[8]); t.Sz = Parse(f[9]);
                 rows.Add(t);
             }
             Close(current, rows, samples);
@@ -128,13 +129,16 @@ namespace Mocodec.Tests
             d = Math.Max(d, Math.Abs(a.Tx - b.Tx));
             d = Math.Max(d, Math.Abs(a.Ty - b.Ty));
             d = Math.Max(d, Math.Abs(a.Tz - b.Tz));
+            d = Math.Max(d, Math.Abs(a.Sx - b.Sx));
+            d = Math.Max(d, Math.Abs(a.Sy - b.Sy));
+            d = Math.Max(d, Math.Abs(a.Sz - b.Sz));
             // NaN compares false everywhere above; make it the worst difference instead.
             return double.IsNaN(d) || HasNaN(a) || HasNaN(b) ? double.PositiveInfinity : d;
         }
 
         static bool HasNaN(MocodecTransform t)
         {
-            return float.IsNaN(t.Qx + t.Qy + t.Qz + t.Qw + t.Tx + t.Ty + t.Tz);
+            return float.IsNaN(t.Qx + t.Qy + t.Qz + t.Qw + t.Tx + t.Ty + t.Tz + t.Sx + t.Sy + t.Sz);
         }
 
         static float Parse(string s)

@@ -60,14 +60,14 @@ namespace Mocodec.Tests
         {
             int total = 0;
             for (int c = 0; c < asset.ClipCount; c++)
-                total += asset.GetClipInfo(c).FrameCount * asset.GetClipInfo(c).NodeCount * 7 * 2;
+                total += asset.GetClipInfo(c).FrameCount * asset.GetClipInfo(c).NodeCount * 10 * 2;
             float[] out_ = new float[total];
             int clipBase = 0;
             for (int c = 0; c < asset.ClipCount; c++)
             {
                 ClipInfo clip = asset.GetClipInfo(c);
                 MocodecTransform[] pose = new MocodecTransform[clip.NodeCount];
-                int stride = clip.NodeCount * 7;
+                int stride = clip.NodeCount * 10;
                 for (int pass = 0; pass < 2; pass++)
                 {
                     SampleFlags flags = pass == 0 ? SampleFlags.None : SampleFlags.World;
@@ -81,6 +81,7 @@ namespace Mocodec.Tests
                         {
                             out_[o++] = pose[j].Qx; out_[o++] = pose[j].Qy; out_[o++] = pose[j].Qz; out_[o++] = pose[j].Qw;
                             out_[o++] = pose[j].Tx; out_[o++] = pose[j].Ty; out_[o++] = pose[j].Tz;
+                            out_[o++] = pose[j].Sx; out_[o++] = pose[j].Sy; out_[o++] = pose[j].Sz;
                         }
                     }
                 }

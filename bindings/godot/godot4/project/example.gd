@@ -1,17 +1,18 @@
-# Example (Godot 4, not run here): play a .mcd clip on a Skeleton3D whose bones are named like
-# the BVH joints. Attach to a Node3D that has a Skeleton3D child called "Skeleton".
+# Example (Godot 4.3+, not run here): with addons/mocodec enabled, a .mcd in the project imports
+# as a MocodecAnimation. A MocodecSkeletonModifier, a child of the Skeleton3D, plays one clip on
+# it in the skeleton's modification pass (after any AnimationPlayer / AnimationTree; blend with
+# its `influence`), retargeted onto the skeleton's own bone names, rests and proportions.
 extends Node3D
 
-@export_file("*.mcd") var asset_path := "res://walk.mcd"
+@export var animation: MocodecAnimation = preload("res://walk.mcd")
+
 
 func _ready() -> void:
-	var animation := MocodecAnimation.new()
-	animation.data = FileAccess.get_file_as_bytes(asset_path)
 	if animation.get_result() != 0:
 		push_error("not a valid mocodec asset: %d" % animation.get_result())
 		return
-	var player := MocodecSkeletonPlayer.new()
-	player.animation = animation
-	add_child(player)
-	player.skeleton = player.get_path_to($Skeleton)
-	player.clip = animation.find_clip(animation.get_clip_name(0))
+	var modifier := MocodecSkeletonModifier.new()
+	modifier.animation = animation
+	modifier.clip = animation.find_clip(animation.get_clip_name(0))
+	modifier.root_motion = false  # stay in place; the hips still move up and down
+	$Skeleton3D.add_child(modifier)

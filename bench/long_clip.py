@@ -1,0 +1,97 @@
+"""Encoding one long capture: the dev clips joined end to end (and again from the first when
+they run out) into one clip of a given length at 120 Hz, encoded per codec; prints and writes
+the encode CPU and wall time, the peak memory against the raw float32 channels (issue 16 asks
+at most 4x), the asset's bytes and the error through the C runtime, or the reason it failed.
+
+    python bench/long_clip.py                              # 20 minutes, rma and spline
+    python bench/long_clip.py --minutes 120 --codecs rma   # the 2-hour case
+
+Each codec runs in its own process; its peak memory includes the dev clips read to build the
+motion (about 240 MB), so short runs overstate the ratio. Run one at a time on a
+shared machine; the times are not a speed benchmark (no lock, no repeats).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+sys.path.insert(0, str(REPO / "encoder"))
+
+
+def joined_motion(folder: Path, frames: int):
+    """The BVH clips of ``folder`` (one skeleton layout) joined into one motion of ``frames``."""
+    import numpy as np
+
+    from mocodec.io import read_bvh
+    from mocodec.motion import Motion
+
+    clips = [read_bvh(p) for p in sorted(folder.glob("*.bvh"))]
+    if not clips:
+        raise SystemExit(f"{folder}: no BVH clips (the dev set is ../shared/data/cmu)")
+    channels, count, k = [], 0, 0
+    while count < frames:
+        part = clips[k % len(clips)].source_channels[: frames - count]
+        channels.append(part)
+        count += len(part)
+        k += 1
+    return Motion.from_channels(clips[0].skeleton, np.concatenate(channels), clips[0].frame_time,
+                                f"joined_{frames}")
+
+
+def run_one(codec: str, folder: Path, frames: int, tolerance: float) -> dict:
+    from mocodec.encode import encode_motions
+    from mocodec.tolerance import Tolerance
+    from mocodec.units import resolve_units
+
+    motion = joined_motion(folder, frames)
+    raw = motion.frame_count * motion.skeleton.channel_count * 4
+    row = {"codec": codec, "frames": motion.frame_count, "minutes": motion.frame_count * motion.frame_time / 60,
+           "raw_float32_bytes": raw}
+    cpu, wall = time.process_time(), time.perf_counter()
+    try:
+        result = encode_motions([motion], [resolve_units(motion.skeleton, "cmu")], codec, Tolerance(tolerance))
+        row.update(ok=True, asset_bytes=len(result.asset), max_cm=result.clips[0].error.max_cm)
+    except Exception as exc:  # the reason is the figure
+        row.update(ok=False, error=f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    row.update(cpu_s=time.process_time() - cpu, wall_s=time.perf_counter() - wall, peak_bytes=peak,
+               peak_over_raw=peak / raw)
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=20.0)
+    ap.add_argument("--codecs", nargs="+", default=["rma", "spline"])
+    ap.add_argument("--tolerance", type=float, default=1.0, help="cm (default 1)")
+    ap.add_argument("--cmu", type=Path, default=REPO.parent / "shared" / "data" / "cmu",
+                    help="the dev BVH clips (default ../shared/data/cmu)")
+    ap.add_argument("--out", type=Path, default=HERE / "results" / "long_clip.json")
+    ap.add_argument("--one", help=argparse.SUPPRESS)  # child: run this codec, print its row
+    args = ap.parse_args()
+    frames = int(round(args.minutes * 60 * 120))
+    if args.one:
+        print(json.dumps(run_one(args.one, args.cmu, frames, args.tolerance)))
+        return
+    rows = []
+    for codec in args.codecs:
+        r = subprocess.run([sys.executable, __file__, "--one", codec, "--minutes", str(args.minutes),
+                            "--tolerance", str(args.tolerance), "--cmu", str(args.cmu)],
+                           capture_output=True, text=True)
+        row = json.loads(r.stdout.splitlines()[-1]) if r.returncode == 0 else \
+            {"codec": codec, "ok": False, "error": r.stderr.strip().splitlines()[-1:]}
+        rows.append(row)
+        print(json.dumps(row))
+    args.out.write_text(json.dumps(rows, indent=2) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,281 @@
+"""Where the clips of a bake are encoded: in this process, in local worker processes, or on a
+running Dask cluster.
+
+Encoding a clip (fitting its keys, checking it through the runtime) needs nothing from the other
+clips, so a codec hands its clips to a :class:`Runner` as :class:`ClipJob` objects and gets the
+:class:`ClipOutcome` objects back in clip order; the section and the asset are assembled here, so
+the asset's bytes do not depend on where or in which order the clips ran. Jobs start longest
+first, so that a long clip does not start last and leave the other workers idle. A runner with a
+:class:`~.cache.ClipCache` encodes only the clips it does not hold.
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import dataclasses
+import multiprocessing
+import os
+import signal
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterator, Sequence
+
+from ..motion import Motion
+from .cache import ClipCache, job_key
+from .fingerprint import encoder_fingerprint
+
+ProgressFn = Callable[[str], None]
+
+WAIT_FOR_WORKERS_S = 60.0
+"""How long a bake waits for a Dask scheduler to have a worker before it gives up."""
+
+CONNECT_TIMEOUT_S = 10.0
+"""How long connecting to a Dask scheduler may take."""
+
+
+class BakeError(RuntimeError):
+    """The clips could not be run: a worker process died, the cluster cannot be reached or has
+    no workers, a worker runs other encoder code. The message says which and what to do."""
+
+
+class EncoderMismatch(BakeError):
+    """A Dask worker's mocodec differs from the client's (its asset would differ too)."""
+
+
+@dataclass
+class ClipJob:
+    """One clip to encode: ``encode_clip(motion, cm_per_unit, settings, check)`` of its codec.
+
+    ``check`` (payload -> world error, the clip alone through the runtime, in a section that
+    starts with ``prefix``) and everything else here must pickle for a process or Dask runner.
+    ``fingerprint``: the client's :func:`~.fingerprint.encoder_fingerprint` (without binaries),
+    set by runners whose workers may run other code."""
+
+    name: str
+    encode_clip: Callable[..., Any]
+    motion: Motion
+    cm_per_unit: float
+    settings: Any
+    check: Callable[[bytes], Any]
+    prefix: bytes = b""
+    fingerprint: str = ""
+
+    @property
+    def weight(self) -> int:
+        """A guess of the work: frames times nodes."""
+        return self.motion.frame_count * self.motion.skeleton.node_count
+
+
+@dataclass
+class ClipOutcome:
+    """What a bake keeps of an encoded clip: its payload, the codec's stats, the seconds it took
+    (when it was encoded, for a clip from the cache)."""
+
+    payload: bytes
+    stats: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+    cached: bool = False
+
+
+def run_job(job: ClipJob) -> ClipOutcome:
+    """Encode one clip (in whichever process runs it)."""
+    if job.fingerprint and job.fingerprint != encoder_fingerprint(binaries=False):
+        raise EncoderMismatch(
+            f"clip {job.name!r}: a Dask worker runs other mocodec code than this client (fingerprint "
+            f"{encoder_fingerprint(binaries=False)[:12]} vs {job.fingerprint[:12]}); install the same "
+            "mocodec on the workers")
+    r = job.encode_clip(job.motion, job.cm_per_unit, job.settings, job.check)
+    return ClipOutcome(r.payload, dict(r.stats), float(r.seconds))
+
+
+class Runner:
+    """Runs clip jobs, each once, and returns their outcomes in job order (a context manager:
+    leaving it stops what it started)."""
+
+    workers = 1
+
+    def __init__(self, cache: ClipCache | None = None) -> None:
+        self.cache = cache
+
+    def run(self, jobs: Sequence[ClipJob], progress: ProgressFn | None = None) -> list[ClipOutcome]:
+        """The outcome of every job, in the order of ``jobs``; ``progress(name)`` after each.
+        An error of one clip (its codec's, or :class:`BakeError`) stops the others and is raised."""
+        outcomes: list[ClipOutcome | None] = [None] * len(jobs)
+        keys: dict[int, str] = {}
+        todo: list[tuple[int, ClipJob]] = []
+        for i, job in enumerate(jobs):
+            if self.cache is not None:
+                keys[i] = job_key(job)
+                hit = self.cache.get(keys[i])
+                if hit is not None:
+                    outcomes[i] = hit
+                    if progress:
+                        progress(job.name)
+                    continue
+            todo.append((i, job))
+        todo.sort(key=lambda item: -item[1].weight)  # stable: equal weights keep clip order
+        for i, outcome in self._dispatch(todo):
+            outcomes[i] = outcome
+            if self.cache is not None:
+                self.cache.put(keys[i], outcome)
+            if progress:
+                progress(jobs[i].name)
+        assert all(o is not None for o in outcomes)
+        return outcomes  # type: ignore[return-value]
+
+    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+        """(position, outcome) of every job of ``todo`` as it finishes."""
+        for i, job in todo:
+            yield i, run_job(job)
+
+    def close(self) -> None:
+        """Stop the workers this runner started."""
+
+    def __enter__(self) -> "Runner":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SerialRunner(Runner):
+    """Every clip in this process, one after the other (``--jobs 1``)."""
+
+
+def _ignore_interrupt() -> None:
+    # Ctrl-C goes to the whole process group: the parent stops the workers, each of which
+    # would otherwise print its own KeyboardInterrupt traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class ProcessRunner(Runner):
+    """Clips in ``workers`` local processes at once (``--jobs N``), started when first needed
+    and kept until :meth:`close`."""
+
+    def __init__(self, workers: int, cache: ClipCache | None = None) -> None:
+        super().__init__(cache)
+        if workers < 1:
+            raise ValueError(f"--jobs must be at least 1, got {workers}")
+        self.workers = workers
+        self._pool: cf.ProcessPoolExecutor | None = None
+
+    def _executor(self) -> cf.ProcessPoolExecutor:
+        if self._pool is None:
+            # Spawned, not forked: the parent may hold threads (a progress bar) and their locks;
+            # and the workers are this process's children, so `time` counts their CPU.
+            context = multiprocessing.get_context("spawn")
+            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_ignore_interrupt)
+        return self._pool
+
+    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+        if len(todo) <= 1:  # starting a process would only add its start-up time
+            yield from super()._dispatch(todo)
+            return
+        pool = self._executor()
+        futures = {pool.submit(run_job, job): (i, job) for i, job in todo}
+        try:
+            for f in cf.as_completed(futures):
+                i, job = futures[f]
+                try:
+                    outcome = f.result()
+                except cf.process.BrokenProcessPool:
+                    raise BakeError(f"clip {job.name!r}: a worker process died while encoding (killed, or "
+                                    "out of memory: try fewer --jobs); nothing was written") from None
+                yield i, outcome
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            self.close(kill=True)
+            raise
+
+    def close(self, kill: bool = False) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        if kill:  # a clip failed or the user interrupted: the other clips' work is not wanted
+            for p in list(getattr(pool, "_processes", {}).values()):
+                p.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskRunner(Runner):
+    """Clips as tasks of a running Dask distributed scheduler (``--scheduler ADDRESS``). A worker
+    that dies takes its clip to another worker (up to the scheduler's
+    ``distributed.scheduler.allowed-failures``, then the bake fails)."""
+
+    def __init__(self, address: str, cache: ClipCache | None = None) -> None:
+        super().__init__(cache)
+        try:
+            from distributed import Client
+        except ImportError:
+            raise BakeError("--scheduler needs Dask's distributed scheduler: pip install 'mocodec[cluster]'") from None
+        self.address = address
+        try:
+            self.client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            reason = (str(exc) or type(exc).__name__).splitlines()[0]
+            raise BakeError(f"cannot reach the Dask scheduler at {address!r}: {reason}") from None
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+
+    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+        if not todo:
+            return
+        from distributed import KilledWorker, as_completed
+
+        try:
+            self.client.wait_for_workers(1, timeout=WAIT_FOR_WORKERS_S)
+        except TimeoutError:
+            raise BakeError(f"the Dask scheduler at {self.address} has no workers (waited {WAIT_FOR_WORKERS_S:g} s): "
+                            f"start some with `dask worker {self.address}`") from None
+        fingerprint = encoder_fingerprint(binaries=False)
+        futures = {}
+        with warnings.catch_warnings():
+            # A clip's frames are its task's argument: a long clip is a large one, by design.
+            warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
+            for i, job in todo:
+                f = self.client.submit(run_job, dataclasses.replace(job, fingerprint=fingerprint),
+                                       pure=False, key=f"mocodec-clip-{i}-{os.urandom(6).hex()}")
+                futures[f] = (i, job)
+        try:
+            for f in as_completed(list(futures), loop=self.client.loop):
+                i, job = futures[f]
+                try:
+                    outcome = f.result()
+                except KilledWorker:
+                    raise BakeError(f"clip {job.name!r}: Dask workers died while encoding it, more often than "
+                                    "the scheduler retries a task (distributed.scheduler.allowed-failures); "
+                                    "nothing was written") from None
+                except cf.CancelledError:
+                    raise BakeError(f"clip {job.name!r}: the Dask scheduler at {self.address} dropped the task "
+                                    "(restarted or lost?); nothing was written") from None
+                yield i, outcome
+        except BaseException:
+            self.client.cancel(list(futures), force=True)
+            raise
+
+    def close(self) -> None:
+        client, self.client = getattr(self, "client", None), None
+        if client is not None:
+            client.close()
+
+
+def default_jobs() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def make_runner(jobs: int | None = None, scheduler: str | None = None,
+                cache: str | os.PathLike | None = None) -> Runner:
+    """The runner of ``--jobs``/``--scheduler``/``--cache``: a Dask cluster when ``scheduler``
+    is given, else ``jobs`` local processes (None: :func:`default_jobs`; 1: this process)."""
+    store = ClipCache(cache) if cache is not None else None
+    if scheduler:
+        if jobs is not None:
+            raise ValueError("--jobs and --scheduler exclude each other: a Dask cluster has its own workers")
+        return DaskRunner(scheduler, store)
+    n = default_jobs() if jobs is None else int(jobs)
+    if n < 1:
+        raise ValueError(f"--jobs must be at least 1, got {n}")
+    return SerialRunner(store) if n == 1 else ProcessRunner(n, store)

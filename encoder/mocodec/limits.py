@@ -1,0 +1,170 @@
+"""The format's limits (docs/FORMAT.md) as the encoder checks them on what it reads.
+
+A reader checks each limit as soon as it meets the value, before anything large is allocated,
+and names the file and line or item; :func:`check_motion` checks a finished :class:`Motion`
+(from any reader, or built in code) once more before it is encoded, so the encoder never writes
+an asset the runtime would refuse.
+
+>>> frame_rate_problem(1e-7)
+'1e+07 frames per second; the format allows at most 100,000'
+>>> name_problem("Hips")
+>>> safe_clip_name("walk:1/2")
+'walk_1_2'
+"""
+from __future__ import annotations
+
+import math
+import unicodedata
+
+import numpy as np
+
+MAX_NODES = 1024
+"""Nodes (joints, end sites, virtual points) of one skeleton."""
+MAX_CLIPS = 65535
+MAX_FRAMES = 1 << 24
+"""Frames of one clip: frame positions are binary32 in the runtime, exact up to 2^24."""
+MAX_FRAME_RATE = 100000.0
+MAX_ABS_VALUE = 1e7
+"""Bound on every stored length and channel value (file units, degrees)."""
+MAX_NAME_BYTES = 255
+_F32_MAX = float(np.finfo(np.float32).max)
+_F32_TINY = float(np.finfo(np.float32).tiny)
+
+
+class LimitError(ValueError):
+    """A motion outside the format's limits; the message names the item and the limit."""
+
+
+def _is_control(ch: str) -> bool:
+    """C0 and C1 control characters and DEL (the format's rule for names)."""
+    o = ord(ch)
+    return o < 0x20 or 0x7F <= o < 0xA0
+
+
+def printable(text: str) -> str:
+    """``text`` with everything a terminal would act on or hide (control and format
+    characters, unpaired surrogates) written as ``\\x..`` / ``\\u....`` escapes: names and
+    paths from files go through it before they are printed."""
+    out = []
+    for ch in text:
+        if ch.isprintable() or ch == " ":
+            out.append(ch)
+        else:
+            o = ord(ch)
+            out.append(f"\\x{o:02x}" if o < 0x100 else f"\\u{o:04x}" if o < 0x10000 else f"\\U{o:08x}")
+    return "".join(out)
+
+
+def name_problem(name: str) -> str | None:
+    """Why ``name`` cannot be a node or clip name of an asset, or None when it can: 1 to 255
+    bytes of UTF-8 without control characters."""
+    if not name:
+        return "an empty name"
+    try:
+        size = len(name.encode("utf-8"))
+    except UnicodeEncodeError:
+        return f"name '{printable(name)}' is not valid Unicode text"
+    if size > MAX_NAME_BYTES:
+        return f"name of {size} bytes; the format allows at most {MAX_NAME_BYTES} (UTF-8)"
+    bad = next((ch for ch in name if _is_control(ch)), None)
+    if bad is not None:
+        return f"name '{printable(name)}' holds control character U+{ord(bad):04X}"
+    return None
+
+
+def clip_name_problem(name: str) -> str | None:
+    """:func:`name_problem`, and what makes a clip name steer a path when an asset is decoded
+    to one file per clip (``/``, ``\\``, ``:``, ``.``, ``..``)."""
+    problem = name_problem(name)
+    if problem:
+        return problem
+    if name in (".", "..") or any(c in name for c in "/\\:"):
+        return f"clip name '{printable(name)}' holds '/', '\\' or ':' or is '.' or '..'"
+    return None
+
+
+def truncate_utf8(text: str, max_bytes: int) -> str:
+    """The longest prefix of ``text`` whose UTF-8 form fits ``max_bytes``."""
+    data = text.encode("utf-8", "surrogatepass")
+    if len(data) <= max_bytes:
+        return text
+    return data[:max_bytes].decode("utf-8", "ignore")
+
+
+def safe_clip_name(stem: str) -> str:
+    """A clip name made from a file stem: characters a clip name may not hold (path separators,
+    ``:``, control and unpaired surrogate characters) become ``_``, NFC-normalised, cut to 255
+    bytes; ``clip`` when nothing is left."""
+    cleaned = "".join("_" if (c in "/\\:" or _is_control(c) or 0xD800 <= ord(c) < 0xE000) else c
+                      for c in unicodedata.normalize("NFC", stem))
+    cleaned = truncate_utf8(cleaned, MAX_NAME_BYTES)
+    return "clip" if cleaned in ("", ".", "..") else cleaned
+
+
+def frame_time_problem(frame_time: float, frames: int) -> str | None:
+    """Why ``frame_time`` seconds per frame cannot be stored for a clip of ``frames`` frames,
+    or None: the rate, a binary32, must be normal and at most 100,000 per second, and the
+    duration finite in binary32."""
+    if not (math.isfinite(frame_time) and frame_time > 0):
+        return "must be a positive number of seconds"
+    rate = 1.0 / frame_time
+    problem = frame_rate_problem(rate)
+    if problem:
+        return problem
+    if not (frames - 1) * frame_time < _F32_MAX:
+        return f"a clip of {frames:,} frames would last {(frames - 1) * frame_time:.3g} s, past binary32"
+    return None
+
+
+def frame_rate_problem(rate: float) -> str | None:
+    """Why ``rate`` frames per second cannot be stored, or None."""
+    if not (rate <= MAX_FRAME_RATE):
+        return f"{rate:.3g} frames per second; the format allows at most {MAX_FRAME_RATE:,.0f}"
+    if not (rate >= _F32_TINY):
+        return f"{rate:.3g} frames per second is below what binary32 holds"
+    return None
+
+
+def frames_problem(frames: int) -> str | None:
+    if frames < 1:
+        return "a clip needs at least one frame"
+    if frames > MAX_FRAMES:
+        return f"{frames:,} frames; the format allows at most {MAX_FRAMES:,} per clip"
+    return None
+
+
+def value_problem(values: np.ndarray) -> tuple[tuple[int, ...], str] | None:
+    """The index of the first value of ``values`` outside +-1e7 (or not finite) and what is
+    wrong with it (``"is not finite"``, ``"is outside the format's +-1e7"``), or None."""
+    bad = ~(np.abs(values) <= MAX_ABS_VALUE)
+    if not bad.any():
+        return None
+    at = tuple(int(i) for i in np.argwhere(bad)[0])
+    return at, "is not finite" if not math.isfinite(float(values[at])) else "is outside the format's +-1e7"
+
+
+def check_motion(motion, what: str | None = None) -> None:
+    """Raise :class:`LimitError` (naming ``what``, default the clip) when ``motion`` is
+    outside the format's limits: nodes, names, frames, frame rate, rest offsets and
+    translations within +-1e7."""
+    sk = motion.skeleton
+    where = what or f"clip '{printable(motion.name)}'"
+    if sk.node_count > MAX_NODES:
+        raise LimitError(f"{where}: {sk.node_count:,} nodes; the format allows at most {MAX_NODES:,}")
+    problem = clip_name_problem(motion.name)
+    if problem:
+        raise LimitError(f"{where}: {problem}")
+    for name in sk.names:
+        problem = name_problem(name)
+        if problem:
+            raise LimitError(f"{where}: node {problem}")
+    problem = frames_problem(motion.frame_count) or frame_time_problem(motion.frame_time, motion.frame_count)
+    if problem:
+        raise LimitError(f"{where}: {problem}")
+    for label, values in (("rest offset", sk.offsets), ("translation", motion.translations)):
+        found = value_problem(values)
+        if found:
+            at, reason = found
+            frame = f"frame {at[0] + 1}, " if values.ndim == 3 else ""
+            raise LimitError(f"{where}: {frame}{label} of node '{printable(sk.names[at[-2]])}': "
+                             f"{float(values[at]):.6g} {reason}")
