@@ -739,6 +739,20 @@ static mcd_quat joint_rotation(const prefix* P, const rmap_views* s, uint32_t sl
     return mcd_qmul(quat_from_matrix(wm), mcd_qconj(quat_at(s->rest + 4u * slot)));
 }
 
+/* q scaled to unit length: a local rotation is a product of two, whose float rounding would
+ * otherwise leave it up to 2e-6 off the unit sphere (then world poses composed by the caller,
+ * e.g. retargeting, drift from the runtime's). */
+static mcd_quat unit_quat(mcd_quat q) {
+    float n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w), inv;
+    if (!(n > 1e-20f)) return q;
+    inv = 1.0f / n;
+    q.x *= inv;
+    q.y *= inv;
+    q.z *= inv;
+    q.w *= inv;
+    return q;
+}
+
 static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
                         int fresh) {
     prefix P;
@@ -795,7 +809,7 @@ static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tra
             local = mcd_qmul(removed, local);
             memcpy(out[i].translation, root_t, sizeof root_t);
         }
-        mcd_set_rotation(out[i].rotation, local);
+        mcd_set_rotation(out[i].rotation, unit_quat(local));
     }
 }
 
