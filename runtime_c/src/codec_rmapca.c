@@ -479,9 +479,27 @@ static void rest_frame(const float axis_in[3], float m[9]) {
     frame_from(axis, side, m);
 }
 
+/* q scaled to unit length (the identity for a zero q). Local rotations go out through it too: a
+ * product of two unit quaternions is up to 2e-6 off the unit sphere in float, and callers that
+ * compose world poses from them (retargeting) would drift from the runtime's world sample. */
+static mcd_quat unit_quat(mcd_quat q) {
+    float n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w), inv;
+    if (!(n > 1e-20f)) {
+        q.x = q.y = q.z = 0.0f;
+        q.w = 1.0f;
+        return q;
+    }
+    inv = 1.0f / n;
+    q.x *= inv;
+    q.y *= inv;
+    q.z *= inv;
+    q.w *= inv;
+    return q;
+}
+
 /* Unit quaternion of a rotation matrix (Shepperd); finite for any bounded input. */
 static mcd_quat quat_from_matrix(const float r[9]) {
-    float tr = r[0] + r[4] + r[8], s, inv, n;
+    float tr = r[0] + r[4] + r[8], s, inv;
     mcd_quat q;
     if (tr > 0.0f) {
         s = 2.0f * sqrtf(tr + 1.0f);
@@ -512,18 +530,7 @@ static mcd_quat quat_from_matrix(const float r[9]) {
         q.y = (r[5] + r[7]) * inv;
         q.z = 0.25f * s;
     }
-    n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
-    if (!(n > 1e-20f)) {
-        q.x = q.y = q.z = 0.0f;
-        q.w = 1.0f;
-        return q;
-    }
-    inv = 1.0f / n;
-    q.x *= inv;
-    q.y *= inv;
-    q.z *= inv;
-    q.w *= inv;
-    return q;
+    return unit_quat(q);
 }
 
 static mcd_quat quat_at(const float* f) {
@@ -737,20 +744,6 @@ static mcd_quat joint_rotation(const prefix* P, const rmap_views* s, uint32_t sl
     }
     frame_from(u, vv, wm);
     return mcd_qmul(quat_from_matrix(wm), mcd_qconj(quat_at(s->rest + 4u * slot)));
-}
-
-/* q scaled to unit length: a local rotation is a product of two, whose float rounding would
- * otherwise leave it up to 2e-6 off the unit sphere (then world poses composed by the caller,
- * e.g. retargeting, drift from the runtime's). */
-static mcd_quat unit_quat(mcd_quat q) {
-    float n = sqrtf(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w), inv;
-    if (!(n > 1e-20f)) return q;
-    inv = 1.0f / n;
-    q.x *= inv;
-    q.y *= inv;
-    q.z *= inv;
-    q.w *= inv;
-    return q;
 }
 
 static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
