@@ -11,10 +11,12 @@ first, so that a long clip does not start last and leave the other workers idle.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import dataclasses
 import multiprocessing
 import os
 import signal
+import threading
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator, Sequence
@@ -147,6 +149,21 @@ def _ignore_interrupt() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+@contextlib.contextmanager
+def _workers_ignore_interrupt() -> Iterator[None]:
+    """Ctrl-C ignored while worker processes are started (they are started on submit): a
+    process inherits it, so a Ctrl-C while a worker is still importing finds it ignoring
+    too (the initializer runs only after the imports)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 class ProcessRunner(Runner):
     """Clips in ``workers`` local processes at once (``--jobs N``), started when first needed
     and kept until :meth:`close`."""
@@ -171,7 +188,8 @@ class ProcessRunner(Runner):
             yield from super()._dispatch(todo)
             return
         pool = self._executor()
-        futures = {pool.submit(run_job, job): (i, job) for i, job in todo}
+        with _workers_ignore_interrupt():
+            futures = {pool.submit(run_job, job): (i, job) for i, job in todo}
         try:
             for f in cf.as_completed(futures):
                 i, job = futures[f]
