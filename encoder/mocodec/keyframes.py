@@ -19,16 +19,16 @@ from typing import Callable
 
 import numpy as np
 
+from . import native
 from . import rotations as R
 from .codecs import ClipResult
-from .curves import catmull_rom, fit_keys
+from .curves import KIND_MRP, KIND_TRANSLATION, KIND_TWIST, CurveTarget, catmull_rom, fit_keys
 from .kinematics import forward_kinematics
 from .motion import Motion
 from .quantize import Quantizer
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         initial_budgets, meet_tolerance, tighten)
 
-KIND_MRP, KIND_TWIST, KIND_TRANSLATION = 1, 2, 3
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3}
 TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
 
@@ -168,17 +168,12 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
 
 def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
     """Local rotations (F, 4) a track's parameter values decode to."""
-    if track.kind == KIND_MRP:
-        return R.quat_multiply(track.ref, R.quat_from_mrp(values))
-    tw = R.quat_from_axis_angle(track.axis, values[:, 0])
-    return R.quat_multiply(tw, R.quat_multiply(track.ref, R.quat_from_mrp(values[:, 1:])))
+    return _track_error(track).decoded(values)
 
 
-def _track_error(track: Track) -> Callable[[np.ndarray], np.ndarray]:
+def _track_error(track: Track) -> CurveTarget:
     """Per-frame error of a reconstruction: rotation angle (rad) or translation distance."""
-    if track.kind == KIND_TRANSLATION:
-        return lambda recon: np.linalg.norm(recon - track.target, axis=1)
-    return lambda recon: R.quat_angle(track.target, _track_rotations(track, recon))
+    return CurveTarget(track.kind, track.target, track.ref, track.axis)
 
 
 # ------------------------------------------------------------------------ fitting
@@ -261,19 +256,6 @@ def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int
             constants.extend(tr.constant.tolist())
         rows.append((rm, tm, ri, ti))
     return rows, constants, animated
-
-
-def _wahba(v: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Per frame, the rotation Q minimising sum_k w_k |Q v_k - u_k|^2 (SVD solution).
-
-    ``v``, ``u``: (F, K, 3); ``w``: (K,). Returns quaternions (F, 4)."""
-    b = np.einsum("k,fki,fkj->fij", w, u, v)
-    uu, _, vt = np.linalg.svd(b)
-    d = np.sign(np.linalg.det(uu @ vt))
-    m = np.ones((len(b), 3))
-    m[:, 2] = d
-    rot = uu @ (m[:, :, None] * vt)
-    return R.quat_from_matrix(rot)
 
 
 class Compensation:
@@ -363,8 +345,7 @@ class Compensation:
             vs.append(np.broadcast_to(e, (self.frames, 3)))
             us.append(R.quat_rotate(orig, e))
             ws.append(0.25 if self.aim[i] else 1.0)
-        world = _wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws))
-        world = R.quat_make_continuous(np.where((np.sum(world * orig, axis=1) < 0)[:, None], -world, world))
+        world = R.quat_make_continuous(native.wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws), orig))
         if parent_rot is None:
             return world
         return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
