@@ -36,8 +36,10 @@ ffibuilder.cdef(header_cdef())
 ffibuilder.set_source(
     "mocodec._native",
     '#include "fit.h"\n',
-    sources=[os.path.relpath(p, HERE) for p in sorted(NATIVE.glob("*.c"))],
-    include_dirs=[os.path.relpath(NATIVE, HERE)],
+    # setuptools wants paths relative to the project directory it builds in (encoder/, or the
+    # repository root for the one-step install).
+    sources=[os.path.relpath(p, os.getcwd()) for p in sorted(NATIVE.glob("*.c"))],
+    include_dirs=[os.path.relpath(NATIVE, os.getcwd())],
     extra_compile_args=["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra"],
     libraries=["m"],
 )

@@ -62,9 +62,10 @@ ffibuilder.cdef(header_cdef(OFFLINE_HEADER))
 ffibuilder.set_source(
     "mocodec_runtime._native",
     '#include "mocodec.h"\n#include "entropy.h"\n#include "ikpredict.h"\n#include "offline.h"\n' + GLUE_SOURCE,
-    # setuptools wants paths relative to the project directory.
-    sources=[os.path.relpath(p, HERE) for p in sorted((RUNTIME / "src").glob("*.c"))],
-    include_dirs=[os.path.relpath(RUNTIME / d, HERE) for d in ("include", "src")],
+    # setuptools wants paths relative to the project directory it builds in (bindings/python,
+    # or the repository root for the one-step install).
+    sources=[os.path.relpath(p, os.getcwd()) for p in sorted((RUNTIME / "src").glob("*.c"))],
+    include_dirs=[os.path.relpath(RUNTIME / d, os.getcwd()) for d in ("include", "src")],
     extra_compile_args=["-std=c99", "-O2"],
     libraries=["m"],
 )

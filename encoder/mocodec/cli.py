@@ -17,21 +17,26 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import __version__, codecs
+from .codecs import DEFAULT_CODEC
+from .tolerance import DEFAULT_TOLERANCE_CM
 
 EPILOG = """\
 examples:
   mocodec encode walk.bvh run.bvh -o moves.mcd --tolerance 0.5
   mocodec encode ../mocap/ -o library.mcd --tolerance 1 --units cmu
+  mocodec encode hero.glb -o hero.mcd --rate 30
   mocodec decode moves.mcd -o walk_decoded.bvh --clip walk
+  mocodec decode hero.mcd -o hero_decoded.glb
   mocodec info moves.mcd
   mocodec eval walk.bvh --tolerance 0.1 --json
   mocodec eval walk.bvh --sweep 0.1 0.5 1 2 --codecs rma spline --plot curve.html
   mocodec view moves.mcd --original walk.bvh run.bvh -o moves.html
 
 The tolerance is a promise: the largest world-space position error of any joint or end site
-on any frame, in centimetres, measured through the C runtime an engine uses. BVH files have
-no units: give --units or --cm-per-unit, or mocodec guesses from the skeleton's height and
-says what it assumed.
+(and of a point beyond every glTF leaf joint) on any frame, in centimetres, measured through
+the C runtime an engine uses. glTF is in metres. BVH files have no units: give --units or
+--cm-per-unit, or mocodec guesses from the figure's animated poses (one unit for clips that
+share a skeleton), says what it assumed, and warns about a figure under 50 or over 300 cm.
 """
 
 
@@ -72,38 +77,25 @@ def _progress(total: int, enabled: bool):
 
 
 def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
-    paths: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh")
-            if not found:
-                raise CliError(f"{p}: folder holds no .bvh files")
-            paths.extend(found)
-        elif p.exists():
-            paths.append(p)
-        else:
-            raise CliError(f"{p}: no such file or folder")
-    if not paths:
-        raise CliError("no input files")
-    return paths
+    from .load import InputError, expand
+
+    try:
+        return expand(inputs)
+    except InputError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _warn(message: str) -> None:
+    print(f"mocodec: warning: {message}", file=sys.stderr)
 
 
 def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
-    from .io import read_bvh
-    from .units import resolve_units
+    from .load import load_all
+    from .units import resolve_library_units
 
-    motions, units = [], []
-    names: set[str] = set()
-    for p in paths:
-        m = read_bvh(p)
-        base, k = m.name, 2
-        while m.name in names:  # two files with one stem: keep both, distinctly named
-            m.name = f"{base}_{k}"
-            k += 1
-        names.add(m.name)
-        motions.append(m)
-        units.append(resolve_units(m.skeleton, args.units, args.cm_per_unit))
+    motions = load_all(paths, getattr(args, "rate", None))
+    units = resolve_library_units(motions, args.units, args.cm_per_unit,
+                                  strict=bool(getattr(args, "strict", False)), warn=_warn)
     if not quiet:
         described = {}
         for m, u in zip(motions, units):
@@ -184,11 +176,12 @@ def _summary_lines(result) -> list[str]:
         f"codec: {result.codec}   " + (f"tolerance: {result.tolerance.tolerance_cm} cm" if result.promise else
                                        f"PCA variance {result.settings.get('pca_variance')} (no tolerance)"),
         f"size: {_fmt_int(size.asset_bytes)} bytes ({_fmt_int(size.bytes_per_second)} B/s of animation)",
-        f"ratio: {size.ratio_bvh:.1f}:1 vs BVH float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
+        f"ratio: {size.ratio_bvh:.1f}:1 vs the source's float32 channels ({_fmt_int(size.raw_bvh_bytes)} B)   "
         f"{size.ratio_acl:.1f}:1 vs ACL's 40 B per bone-sample ({_fmt_int(size.raw_acl_bytes)} B)",
         f"error through the C runtime (cm): max {err['max_cm']:.4f}  p99 {err['p99_cm']:.4f}  "
         f"mean {err['mean_cm']:.4f}   (max {err['max_pct_height']:.3f} % of height)",
         f"encode time: {result.encode_seconds:.1f} s",
+        *result.notes,
     ]
 
 
@@ -225,6 +218,7 @@ def _result_json(result) -> dict[str, Any]:
         "size": result.size.as_dict(),
         "error": combine([c.error for c in result.clips]),
         "encode_seconds": result.encode_seconds,
+        "notes": result.notes,
         "clips": [
             {"name": c.name, "frames": c.frames, "units": c.units.label,
              "cm_per_unit": c.units.cm_per_unit, **c.error.as_dict(), **c.stats}
@@ -314,13 +308,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
-    from .decode import decode_clip
+    from .decode import decode_clip, write_asset_gltf
     from .io import write_bvh
     from .runtime import Asset
 
-    asset = Asset(_read_asset(args.asset))
+    data = _read_asset(args.asset)
+    asset = Asset(data)
     clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
     out = Path(args.output)
+    if out.suffix.lower() in (".glb", ".gltf"):
+        write_asset_gltf(data, out, [c.index for c in clips])
+        if not args.quiet:
+            print(f"wrote {out} ({len(clips)} clip(s) as glTF animations, decoded by the C runtime)")
+        return 0
     if len(clips) > 1:
         if out.suffix.lower() == ".bvh":
             raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
@@ -332,7 +332,12 @@ def cmd_decode(args: argparse.Namespace) -> int:
         targets = [out]
     progress = _progress(len(clips), not args.quiet)
     for c, target in zip(clips, targets):
-        write_bvh(decode_clip(asset, c.index), target, precision=args.precision)
+        motion = decode_clip(asset, c.index)
+        sk = motion.skeleton
+        if sk.is_virtual.any() or np.any(sk.rest_rotations != [0.0, 0.0, 0.0, 1.0]) or np.any(sk.rest_scales != 1):
+            raise CliError(f"clip {c.name!r} comes from glTF (rest rotations and scales, no BVH "
+                           "channels): decode it to a .glb or .gltf file")
+        write_bvh(motion, target, precision=args.precision)
         progress(c.name)
         if not args.quiet:
             print(f"wrote {target} ({c.frame_count} frames, decoded by the C runtime)")
@@ -385,7 +390,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"  memory to sample: the asset itself ({len(data):,} B, sampled in place) + "
           f"{info['scratch_bytes']:,} B scratch per playing instance")
     if info["ratio_bvh"]:
-        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs BVH float32 channels")
+        print(f"  ratio {info['ratio_bvh']:.1f}:1 vs the source's float32 channels")
     print("  sections: " + ", ".join(f"{s['kind']} {s['bytes']:,} B" for s in info["sections"]))
     for i, s in enumerate(info["skeletons"]):
         print(f"  skeleton {i}: {s['nodes']} nodes, {s['cm_per_unit']:g} cm per unit")
@@ -457,12 +462,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 # ----------------------------------------------------------------------------- parser
 def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="BVH files or folders of BVH files (one clip each)")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+                   help="BVH files (one clip each), glTF 2.0 files (.gltf, .glb: every animation "
+                        "a clip) or folders of them")
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s, the smallest that "
                         "meets the tolerance: a whole library in one section; spline samples in "
                         "place without resident memory; `mocodec --help` describes each)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM",
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM",
                    help="max world-space position error of any joint or end site on any frame, "
                         "in cm (default: %(default)s)")
     p.add_argument("--effector-tolerance", type=float, default=None, metavar="CM",
@@ -475,8 +481,14 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
     units = p.add_mutually_exclusive_group()
     units.add_argument("--units", choices=["cm", "m", "mm", "in", "cmu"],
                        help="the BVH files' length unit (cmu: CMU mocap, 5.6444 cm); "
-                            "default: guessed from the skeleton's height")
-    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per file unit")
+                            "default: guessed from the figure's animated poses (glTF is metres)")
+    units.add_argument("--cm-per-unit", type=float, metavar="X", help="centimetres per BVH file unit")
+    p.add_argument("--strict", action="store_true",
+                   help="a BVH figure under 50 or over 300 cm tall in its unit is an error, not a warning")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="frames per second glTF clips are resampled at (default: the clip's key "
+                        "spacing when regular, subdivided up to 24 Hz, else 60); errors are measured "
+                        "against the source's own interpolation at those times")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
                    help="a codec setting, e.g. -O block_shift=6 (values are JSON)")
     p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
@@ -504,12 +516,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcd", help="asset to write")
     p.set_defaults(func=cmd_encode)
 
-    p = sub.add_parser("decode", help="decode an asset back to BVH through the C runtime",
+    p = sub.add_parser("decode", help="decode an asset back to BVH or glTF through the C runtime",
                        description="Decode clips through the C runtime and write BVH with the "
-                                   "original hierarchy and channel layout.")
+                                   "original hierarchy and channel layout, or glTF 2.0 (-o x.glb / "
+                                   "x.gltf: every clip an animation on the original node hierarchy, "
+                                   "a key per frame).")
     p.add_argument("asset", metavar="ASSET.mcd")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="a .bvh file (one clip) or a folder (one file per clip)")
+                   help="a .bvh file (one clip), a folder (one BVH per clip), or a .glb / .gltf "
+                        "file (every clip)")
     p.add_argument("--clip", metavar="NAME", help="decode only this clip")
     p.add_argument("--precision", type=int, default=6, help="decimals written (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -553,9 +568,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="run the whole pipeline on the sample clips that ship with mocodec",
                        description="Encode the bundled CMU sample clips, decode them through the C "
                                    "runtime, print ratio and error.")
-    p.add_argument("--codec", default="rma", choices=codecs.available(), metavar="CODEC",
+    p.add_argument("--codec", default=DEFAULT_CODEC, choices=codecs.available(), metavar="CODEC",
                    help="codec, one of: %(choices)s (default: %(default)s)")
-    p.add_argument("-t", "--tolerance", type=float, default=1.0, metavar="CM")
+    p.add_argument("-t", "--tolerance", type=float, default=DEFAULT_TOLERANCE_CM, metavar="CM")
     p.add_argument("-o", "--output", default="out/demo", metavar="DIR",
                    help="where to write the asset and decoded BVH (default: %(default)s)")
     p.set_defaults(func=cmd_demo)

@@ -18,9 +18,13 @@ import numpy as np
 from . import native
 from . import rotations as R
 
-KIND_MRP, KIND_TWIST, KIND_TRANSLATION = native.KIND_MRP, native.KIND_TWIST, native.KIND_TRANSLATION
+KIND_MRP, KIND_TWIST = native.KIND_MRP, native.KIND_TWIST
+KIND_TRANSLATION, KIND_SCALE = native.KIND_TRANSLATION, native.KIND_SCALE
 """What a curve's values are: modified Rodrigues parameters of a rotation relative to a
-reference, a twist angle about an axis followed by such parameters, or a translation."""
+reference, a twist angle about an axis followed by such parameters, a translation or a
+scale."""
+VECTOR_KINDS = (KIND_TRANSLATION, KIND_SCALE)
+"""Kinds whose values are the decoded vectors themselves, their error a distance."""
 
 
 def catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray, split: bool = False) -> np.ndarray:
@@ -65,7 +69,7 @@ class CurveTarget:
     Calling it maps a reconstruction (F, d) to the error per frame (F,): the angle (rad) from
     ``target`` rotations (F, 4) of the rotations an MRP curve (``KIND_MRP``: ``ref * q(p)``) or
     a twist curve (``KIND_TWIST``: ``twist(axis, a) * ref * q(p)``) decodes to, or the distance
-    from ``target`` translations (F, 3) (``KIND_TRANSLATION``). :meth:`half` does the same for
+    from ``target`` translations or scales (F, 3) (``VECTOR_KINDS``). :meth:`half` does the same for
     the curve half-way between frames against ``half_target`` (F - 1, 4 | 3).
     """
 
@@ -76,8 +80,9 @@ class CurveTarget:
     half_target: np.ndarray | None = None
 
     def decoded(self, recon: np.ndarray) -> np.ndarray:
-        """Rotations (F, 4) or translations (F, 3) that curve values ``recon`` decode to."""
-        if self.kind == KIND_TRANSLATION:
+        """Rotations (F, 4), or translations or scales (F, 3), that curve values ``recon``
+        decode to."""
+        if self.kind in VECTOR_KINDS:
             return recon
         if self.kind == KIND_MRP:
             return R.quat_multiply(self.ref, R.quat_from_mrp(recon))
@@ -85,7 +90,7 @@ class CurveTarget:
         return R.quat_multiply(tw, R.quat_multiply(self.ref, R.quat_from_mrp(recon[:, 1:])))
 
     def _error(self, recon: np.ndarray, target: np.ndarray) -> np.ndarray:
-        if self.kind == KIND_TRANSLATION:
+        if self.kind in VECTOR_KINDS:
             return np.linalg.norm(recon - target, axis=1)
         return R.quat_angle(target, self.decoded(recon))
 
@@ -124,13 +129,13 @@ def fit_keys(
     mandatory : sorted frames that are always keys (must include 0 and F - 1).
     dequantize : maps original key values (K, d) to what the decoder will see, row by row.
     split : the curve's first segment is detached (:func:`catmull_rom`).
-    grid : key cells of ``grid`` frames (frames 1 ... F - 1 in cells from frame 1; frame 0 is
-        a cell of its own): a key costs a bit of the ``RMAL`` mask in a free cell and a whole
-        list entry in a cell that already holds one. A new key goes on the first frame of a
-        free cell where a failing interval has one (the cell start with the worst
-        error/budget ratio), else on its worst failing frame in a free cell, and only where
-        an interval has no free cell left on its worst failing frame. With ``grid == 1``
-        every frame is a cell.
+    grid : key cells of ``grid`` frames (frames 1 ... F - 2 in cells from frame 1; frame 0
+        and frame F - 1 are cells of their own): the ``RMAL`` key times cost a bit per cell
+        and per key, plus each key's place in its cell unless every key is on its cell's
+        first frame. A new key goes on the first frame of a free cell where a failing
+        interval has one (the cell start with the worst error/budget ratio), else on its worst
+        failing frame in a free cell, and only where an interval has no free cell left on its
+        worst failing frame. With ``grid == 1`` every frame is a cell.
     half_budget : (F - 1,) allowed error half-way between frames (``error`` must be a
         :class:`CurveTarget` with a ``half_target``; ``inf`` where not held), or None. A
         frame next to a half-way sample over budget counts as failing, with that sample's
@@ -177,9 +182,11 @@ def fit_keys_reference(
     if start is not None:
         keys = np.union1d(keys, start)
     halfway = _Halfway(error, half_budget, frames) if half_budget is not None else None
-    # Cell of every frame, shifted by one so frame 0 has cell 0 to itself.
+    # Cell of every frame: frame 0 and the last frame have cells of their own.
     cell = np.zeros(frames, dtype=np.int64)
     cell[1:] = (np.arange(1, frames) - 1) // grid + 1
+    if frames > 2:
+        cell[-1] = cell[-2] + 1
     on_grid = np.zeros(frames, dtype=bool)
     on_grid[1:] = (np.arange(1, frames) - 1) % grid == 0
     taken = np.zeros(int(cell[-1]) + 1, dtype=bool)

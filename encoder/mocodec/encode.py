@@ -14,13 +14,14 @@ import numpy as np
 
 from . import __version__, codecs
 from .container import AssetBuilder, ClipEntry
-from .kinematics import forward_kinematics
-from .metrics import ErrorMetric, ErrorReport, SizeReport, size_report
+from .kinematics import motion_world
+from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
 from .motion import Motion
-from .runtime import Asset, decode_world
-from .tolerance import Tolerance, ToleranceNotMet
+from .codecs import DEFAULT_CODEC
+from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
+    from .runtime import Asset
     from .units import UnitsChoice
 
 
@@ -49,6 +50,8 @@ class EncodeResult:
     # errors are what it reached, and the tolerance was not applied.
     promise: bool = True
     settings: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    """How resampled (glTF) clips were measured (:func:`mocodec.load.sampling_notes`)."""
 
     @property
     def max_error_cm(self) -> float:
@@ -68,7 +71,9 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset."""
-    originals = [forward_kinematics(m.skeleton, m.rotations, m.translations)[1] for m in motions]
+    from .runtime import Asset, decode_world  # the binding, needed only once encoding runs
+
+    originals = [motion_world(m)[1] for m in motions]
 
     def check(i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
         data = _single_clip_asset(motions[i], cm_per_unit[i], codec, payload, prefix)
@@ -78,15 +83,17 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
     return check
 
 
-def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoice]",
+def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsChoice]",
              clip_names: list[str] | None = None, contacts: bool = False) -> list[ErrorReport]:
     """Decode each clip of ``asset`` through the runtime and compare with ``motions``
     (``contacts``: with the contact trajectories applied, as an engine samples them)."""
+    from .runtime import Asset
+
     a = asset if isinstance(asset, Asset) else Asset(asset)
     names = clip_names or [m.name for m in motions]
     reports = []
     for m, u, name in zip(motions, units, names):
-        rot_o, pos_o = forward_kinematics(m.skeleton, m.rotations, m.translations)
+        rot_o, pos_o = motion_world(m)
         rot_d, pos_d = a.sample_frames(name, world=True, contacts=contacts)
         local_d, _ = a.sample_frames(name, world=False, contacts=contacts)
         metric = ErrorMetric(cm_per_unit=u.cm_per_unit, height_units=u.height_units)
@@ -97,7 +104,7 @@ def evaluate(asset: bytes | Asset, motions: list[Motion], units: "list[UnitsChoi
 def encode_motions(
     motions: list[Motion],
     units: "list[UnitsChoice]",
-    codec: str = "spline",
+    codec: str = DEFAULT_CODEC,
     tolerance: Tolerance | None = None,
     options: dict[str, Any] | None = None,
     progress: Callable[[str], None] | None = None,
@@ -112,10 +119,11 @@ def encode_motions(
     """
     if not motions:
         raise EncodeError("nothing to encode")
-    tolerance = tolerance or Tolerance(1.0)
+    tolerance = tolerance or Tolerance(DEFAULT_TOLERANCE_CM)
     for m in motions:
         m.validate()
     entry = codecs.get(codec)
+    from .load import sampling_notes
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
     check = make_check(motions, cm, codec)
@@ -126,9 +134,12 @@ def encode_motions(
     builder = AssetBuilder()
     if out.section_prefix:
         builder.codec_prefix[codec] = out.section_prefix
+    skin_joints: dict[str, str] = {}
     for m, u, payload in zip(motions, units, out.payloads):
         s = builder.add_skeleton(m.skeleton, u.cm_per_unit)
         builder.add_clip(ClipEntry(m.name, s, codec, payload, m.frame_count, m.frame_rate))
+        if (m.source or {}).get("joints") is not None:
+            skin_joints[str(s)] = index_ranges(m.source["joints"])
     # First pass measures the asset; the second writes the measured errors into META.
     asset = builder.build()
     contact_stats: list[dict[str, Any]] = [{} for _ in motions]
@@ -159,10 +170,13 @@ def encode_motions(
                 "height_cm": round(r.height_cm, 3),
                 "cm_per_unit": u.cm_per_unit,
                 "units": u.label,
-                "raw_bvh_bytes": m.skeleton.channel_count * m.frame_count * 4,
+                "raw_bvh_bytes": raw_bvh_bytes(m),
+                **_source_meta(m),
             }
             for m, r, u in zip(motions, reports, units)
         },
+        # glTF export: which nodes of each skeleton were skin joints (the others moved them).
+        **({"skin_joints": skin_joints} if skin_joints else {}),
     }
     asset = builder.build()
     stats = out.stats or [{} for _ in motions]
@@ -172,7 +186,33 @@ def encode_motions(
     clips = [ClipReport(m.name, m.frame_count, r, u, s)
              for m, r, u, s in zip(motions, reports, units, stats)]
     return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed,
-                        out.promise, dict(out.settings))
+                        out.promise, dict(out.settings), sampling_notes(motions))
+
+
+def _source_meta(m: Motion) -> dict[str, Any]:
+    """What META keeps of a clip's source: its format and, for glTF, the time of frame 0."""
+    src = m.source or {}
+    out: dict[str, Any] = {"source": src["format"]} if "format" in src else {}
+    if src.get("start_s"):
+        out["start_s"] = float(src["start_s"])
+    return out
+
+
+def index_ranges(indices: list[int]) -> str:
+    """``[0, 1, 2, 5]`` -> ``"0-2,5"``."""
+    values = sorted(indices)
+    starts = [k for k, v in enumerate(values) if k == 0 or v != values[k - 1] + 1]
+    runs = [values[a:b] for a, b in zip(starts, starts[1:] + [len(values)])]
+    return ",".join(f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
+
+
+def parse_index_ranges(text: str) -> list[int]:
+    """The inverse of :func:`index_ranges`."""
+    out: list[int] = []
+    for part in filter(None, text.split(",")):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
 
 
 def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], units: "list[UnitsChoice]",
@@ -184,13 +224,14 @@ def add_contacts(builder: AssetBuilder, asset: bytes, motions: list[Motion], uni
     past the tolerance is shrunk (a smaller share of the correction is stored) and, if that
     is not enough, left out; the check is repeated until no node is over."""
     from . import contacts as C
+    from .runtime import Asset, decode_world
 
     a = Asset(asset)
     clips: dict[int, C.ClipContacts] = {}
     stats: list[dict[str, Any]] = [{} for _ in motions]
     originals = []
     for i, (m, u) in enumerate(zip(motions, units)):
-        _, orig = forward_kinematics(m.skeleton, m.rotations, m.translations)
+        _, orig = motion_world(m)
         originals.append(orig)
         _, dec = decode_world(a, m.name)
         masks = C.detect_contacts(m.skeleton, orig, m.frame_rate, u.cm_per_unit)

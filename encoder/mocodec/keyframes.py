@@ -2,8 +2,9 @@
 compensation ``fk-wavelet`` uses too.
 
 A track is one node's rotation (modified Rodrigues parameters relative to the clip's mean
-rotation; or an unwrapped twist angle plus MRPs for a node that keeps turning round) or its
-translation (only nodes with position channels). Its keys are Catmull-Rom control points with
+rotation; or an unwrapped twist angle plus MRPs for a node that keeps turning round), its
+translation or its scale (only where the clip moves them away from the rest pose,
+:meth:`mocodec.motion.Motion.animated`). Its keys are Catmull-Rom control points with
 adaptive placement (seed 003 §5.1) and range-aware quantization (§5.2). A
 :class:`KeyframeFitter` meets a world-space tolerance on every frame: it splits the tolerance
 into per-track budgets (:mod:`mocodec.tolerance`), fits each track until its own error is within
@@ -22,14 +23,16 @@ import numpy as np
 from . import native
 from . import rotations as R
 from .codecs import ClipResult
-from .curves import KIND_MRP, KIND_TRANSLATION, KIND_TWIST, CurveTarget, catmull_rom, fit_keys
+from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
+                     catmull_rom, fit_keys)
 from .kinematics import forward_kinematics
 from .motion import Motion
 from .quantize import Quantizer
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         initial_budgets, meet_tolerance, tighten)
 
-DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3}
+DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
+ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
 TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
 
 
@@ -73,14 +76,14 @@ class KeyframeSettings:
 
 @dataclass
 class Track:
-    """One node's rotation or translation curve, as fitted: parameter values on every frame,
+    """One node's rotation, translation or scale curve, as fitted: parameter values on every frame,
     the target they reproduce, the error budget per frame, and (once fitted) the keys and
     their quantizer, or the constant the track folds to."""
 
     node: int
     kind: int
     values: np.ndarray        # (F, d) parameters on every frame
-    target: np.ndarray        # (F, 4) original local rotation or (F, 3) translation
+    target: np.ndarray        # (F, 4) original local rotation or (F, 3) translation / scale
     ref: np.ndarray           # (4,) reference quaternion (float32-exact), rotations only
     axis: np.ndarray          # (3,) twist axis (float32-exact), kind 2 only
     budget: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -94,10 +97,16 @@ class Track:
     quantizer: Quantizer | None = None
     constant: np.ndarray | None = None
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
+    rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
 
     @property
     def is_rotation(self) -> bool:
-        return self.kind != KIND_TRANSLATION
+        return self.kind not in VECTOR_KINDS
+
+    @property
+    def part(self) -> int:
+        """ROT, TRANS or SCALE."""
+        return SCALE if self.kind == KIND_SCALE else TRANS if self.kind == KIND_TRANSLATION else ROT
 
 
 # ------------------------------------------------------------------------ track construction
@@ -172,7 +181,8 @@ def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
 
 
 def _track_error(track: Track) -> CurveTarget:
-    """Per-frame error of a reconstruction: rotation angle (rad) or translation distance."""
+    """Per-frame error of a reconstruction: rotation angle (rad), translation distance or
+    scale difference."""
     return CurveTarget(track.kind, track.target, track.ref, track.axis)
 
 
@@ -181,7 +191,7 @@ def _quant_steps(track: Track, fraction: float) -> np.ndarray:
     """Largest quantization step per component whose worst case stays within ``fraction``
     of the track's base budget (angle for rotations: |dq| <= 4|dp| for MRPs)."""
     b = fraction * track.base_budget * track.quant_scale
-    if track.kind == KIND_TRANSLATION:
+    if track.kind in VECTOR_KINDS:
         return np.full(3, 2.0 * b / np.sqrt(3.0))
     if track.kind == KIND_MRP:
         return np.full(3, b / (2.0 * np.sqrt(3.0)))
@@ -190,7 +200,7 @@ def _quant_steps(track: Track, fraction: float) -> np.ndarray:
 
 
 def _constant_value(track: Track) -> np.ndarray:
-    if track.kind == KIND_TRANSLATION:
+    if track.kind in VECTOR_KINDS:
         lo, hi = track.values.min(axis=0), track.values.max(axis=0)
         return f32_exact(0.5 * (lo + hi))
     return track.ref  # exactly what the runtime expands the stored codes to
@@ -203,9 +213,17 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``)."""
     err = _track_error(track)
     frames = len(track.values)
+    if track.rest is not None:  # the rest value costs nothing: take it when within budget
+        rest = np.broadcast_to(track.rest, track.target.shape)
+        dev = (np.linalg.norm(rest - track.target, axis=1) if track.kind in VECTOR_KINDS
+               else R.quat_angle(track.target, rest))
+        if np.all(dev <= track.budget):
+            track.keys, track.quantizer, track.constant = None, None, track.rest
+            track.fit_error = dev
+            return
     if track.kind != KIND_TWIST:
         const = _constant_value(track)
-        recon = np.broadcast_to(const if track.kind == KIND_TRANSLATION else np.zeros(3), (frames, 3))
+        recon = np.broadcast_to(const if track.kind in VECTOR_KINDS else np.zeros(3), (frames, 3))
         dev = err(recon)
         if np.all(dev <= track.budget):
             track.keys, track.quantizer, track.constant = None, None, const
@@ -229,32 +247,35 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
         track.quant_scale *= 0.5  # keys on every failing frame and still over: finer steps
 
 
-def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int, int, int]], list[float], list[Track]]:
+def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int, int, int, int, int]], list[float], list[Track]]:
     """How each node is stored, shared by the key-frame codecs: per node (rotation_mode,
-    translation_mode, rotation_index, translation_index) as docs/FORMAT.md's SPLN node table
-    (0 rest/identity, 1 constant, 2 animated), the f32 constants, and the animated tracks in
-    node order (rotation before translation)."""
+    translation_mode, scale_mode, rotation_index, translation_index, scale_index) as
+    docs/FORMAT.md's node tables (0 the rest value, 1 constant, 2 animated; an index is the
+    track's among the animated ones, or the first of its constants), the f32 constants, and
+    the animated tracks in node order (rotation, translation, scale)."""
     sk = motion.skeleton
-    animated = [t for t in tracks if t.keys is not None]
+    by_node: dict[tuple[int, int], Track] = {(t.node, t.part): t for t in tracks}
+    ordered = [by_node[(i, part)] for i in range(sk.node_count) for part in (ROT, TRANS, SCALE)
+               if (i, part) in by_node]
+    animated = [t for t in ordered if t.keys is not None]
     index = {id(t): i for i, t in enumerate(animated)}
     constants: list[float] = []
     rows = []
-    by_node: dict[tuple[int, bool], Track] = {(t.node, t.is_rotation): t for t in tracks}
     for i in range(sk.node_count):
-        rot = by_node.get((i, True))
-        tr = by_node.get((i, False))
-        rm, ri, tm, ti = 0, 0, 0, 0
-        if rot is not None and rot.keys is not None:
-            rm, ri = 2, index[id(rot)]
-        elif rot is not None and not np.array_equal(rot.constant, [0, 0, 0, 1]):
-            rm, ri = 1, len(constants)
-            constants.extend(rot.constant.tolist())
-        if tr is not None and tr.keys is not None:
-            tm, ti = 2, index[id(tr)]
-        elif tr is not None and not np.array_equal(tr.constant, f32_exact(sk.offsets[i])):
-            tm, ti = 1, len(constants)
-            constants.extend(tr.constant.tolist())
-        rows.append((rm, tm, ri, ti))
+        rest_q = f32_exact(sk.rest_rotations[i])
+        rest = {ROT: (rest_q, -rest_q), TRANS: (f32_exact(sk.offsets[i]),),
+                SCALE: (f32_exact(sk.rest_scales[i]),)}
+        modes, where = [0, 0, 0], [0, 0, 0]
+        for part in (ROT, TRANS, SCALE):
+            t = by_node.get((i, part))
+            if t is None:
+                continue
+            if t.keys is not None:
+                modes[part], where[part] = 2, index[id(t)]
+            elif not any(np.array_equal(t.constant, r) for r in rest[part]):
+                modes[part], where[part] = 1, len(constants)
+                constants.extend(t.constant.tolist())
+        rows.append((modes[0], modes[1], modes[2], where[0], where[1], where[2]))
     return rows, constants, animated
 
 
@@ -266,30 +287,35 @@ class Compensation:
     its *decoded* parent, best re-aims its children at their original positions (a Wahba fit
     over its child points, plus virtual vertices at the shell distance that fix the twist). A
     parent's error then moves its children but is not carried on down the chain, so each
-    rotation only answers for its own bones. :attr:`reach` says which points each track (a
-    node's rotation or translation, in ``track_nodes`` / ``track_is_rot`` order) moves and how
-    far its error is carried.
+    rotation only answers for its own bones. Scales are not compensated: a scale track's
+    error moves every point below its node. :attr:`reach` says which points each track (a
+    node's rotation, translation or scale, in ``track_nodes`` / ``track_parts`` order) moves
+    and how far its error is carried.
     """
 
     def __init__(self, motion: Motion, cm_per_unit: float, shell_cm: float) -> None:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.rot_w, self.pos_w = forward_kinematics(sk, motion.rotations, motion.translations)
+        self.rot_w, self.pos_w = forward_kinematics(sk, motion.rotations, motion.translations, motion.scales)
         self.shell = shell_cm / cm_per_unit
-        self.has_rot = [bool(sk.rotation_order(i)) for i in range(sk.node_count)]
-        self.has_trans = [bool(sk.position_axes(i)) for i in range(sk.node_count)]
+        animated = motion.animated()
+        self.has_rot = [bool(a) for a in animated[:, ROT]]
+        self.has_trans = [bool(a) for a in animated[:, TRANS]]
+        self.has_scale = [bool(a) for a in animated[:, SCALE]]
         self.aim = [self._aim_points(i) for i in range(sk.node_count)]
-        nodes, is_rot = [], []
+        nodes, parts = [], []
         for i in range(sk.node_count):
-            if self.has_rot[i]:
-                nodes.append(i)
-                is_rot.append(True)
-            if self.has_trans[i]:
-                nodes.append(i)
-                is_rot.append(False)
-        self.track_nodes, self.track_is_rot = nodes, is_rot
+            for part in (ROT, TRANS, SCALE):
+                if animated[i, part]:
+                    nodes.append(i)
+                    parts.append(part)
+        self.track_nodes, self.track_parts = nodes, parts
         self.reach = self._reach()
+
+    @property
+    def track_is_rot(self) -> list[bool]:
+        return [p == ROT for p in self.track_parts]
 
     def _aim_points(self, i: int) -> list[int]:
         """The nearest descendants in each branch that sit away from node i (skipping
@@ -315,10 +341,20 @@ class Compensation:
         t = len(self.track_nodes)
         affects = np.zeros((t, sk.node_count), dtype=bool)
         lever = np.zeros((t, sk.node_count))
-        for k, (i, rot) in enumerate(zip(self.track_nodes, self.track_is_rot)):
-            if not rot:
+        for k, (i, part) in enumerate(zip(self.track_nodes, self.track_parts)):
+            if part == TRANS:
                 affects[k, anc[i]] = True
                 lever[k, anc[i]] = 1.0
+                continue
+            if part == SCALE:
+                below = anc[i].copy()
+                below[i] = False
+                # A scale error ds moves a point w away by about |ds| |w| / |s| (s the node's
+                # local scale); where s is near 0 the subtree has shrunk onto the node too.
+                s = np.maximum(np.abs(self.motion.scales[:, i]).min(axis=-1), 1e-2)
+                dist = np.linalg.norm(self.pos_w[:, below] - self.pos_w[:, i:i + 1], axis=-1)
+                affects[k, below] = True
+                lever[k, below] = np.maximum((dist / s[:, None]).max(axis=0) if dist.size else 0.0, 1e-9)
                 continue
             affects[k, i] = True
             lever[k, i] = self.shell
@@ -327,7 +363,7 @@ class Compensation:
                 below = anc[c]
                 affects[k, below] = True
                 lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
-        return TrackReach(affects, lever, np.asarray(self.track_is_rot))
+        return TrackReach(affects, lever, np.asarray(self.track_is_rot, dtype=bool))
 
     def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray) -> np.ndarray:
         """Local rotation (F, 4) that best places node i's aim points given the decoded
@@ -385,7 +421,7 @@ class KeyframeFitter:
     def _fit(self, track: Track) -> None:
         fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
 
-    def _fit_pass(self, tracks: dict[tuple[int, bool], Track], refit: set[tuple[int, bool]]) -> None:
+    def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
         decoded pose changed since the last pass."""
         sk = self.motion.skeleton
@@ -393,25 +429,18 @@ class KeyframeFitter:
         n = sk.node_count
         rot_d = np.empty((self.frames, n, 4))
         pos_d = np.empty((self.frames, n, 3))
+        scale_d = np.empty((self.frames, n, 3))
         moved = np.zeros(n, dtype=bool)
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
-            # Translation.
-            key = (i, False)
-            if key in tracks:
-                t = tracks[key]
-                if key in refit or t.keys is None and t.constant is None:
-                    self._fit(t)
-                local_t = _track_recon(t)
-            else:
-                local_t = np.broadcast_to(f32_exact(sk.offsets[i]), (self.frames, 3))
+            local_t = self._vector_part(tracks, refit, i, TRANS, sk.offsets[i])
             if p < 0:
                 pos_d[:, i] = local_t
             else:
-                pos_d[:, i] = pos_d[:, p] + R.quat_rotate(rot_d[:, p], local_t)
+                pos_d[:, i] = pos_d[:, p] + R.quat_rotate(rot_d[:, p], scale_d[:, p] * local_t)
             # Rotation.
-            key = (i, True)
+            key = (i, ROT)
             if key in tracks:
                 t = tracks[key]
                 if key in refit or parent_moved or t.target is None:
@@ -419,14 +448,27 @@ class KeyframeFitter:
                     _retarget(t, target, self.motion, i)
                     self._fit(t)
                 local_q = _track_recon(t)
-            elif comp.has_rot[i]:
-                local_q = self.motion.rotations[:, i]  # exactly identity on every frame
-            else:
-                local_q = np.broadcast_to([0.0, 0.0, 0.0, 1.0], (self.frames, 4))
+            else:  # the rest rotation on every frame (identity for BVH)
+                local_q = np.broadcast_to(f32_exact(sk.rest_rotations[i]), (self.frames, 4))
             rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
+            # Scale (not compensated: its target is the original).
+            local_s = self._vector_part(tracks, refit, i, SCALE, sk.rest_scales[i])
+            scale_d[:, i] = local_s if p < 0 else scale_d[:, p] * local_s
             prev = self._decoded
-            moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i]) and np.array_equal(prev[1][:, i], pos_d[:, i]))
-        self._decoded = (rot_d, pos_d)
+            moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i])
+                                            and np.array_equal(prev[1][:, i], pos_d[:, i])
+                                            and np.array_equal(prev[2][:, i], scale_d[:, i]))
+        self._decoded = (rot_d, pos_d, scale_d)
+
+    def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
+                     part: int, rest: np.ndarray) -> np.ndarray:
+        """A node's decoded translation or scale (F, 3), its track (re)fitted when asked to."""
+        t = tracks.get((node, part))
+        if t is None:
+            return np.broadcast_to(f32_exact(rest), (self.frames, 3))
+        if (node, part) in refit or t.keys is None and t.constant is None:
+            self._fit(t)
+        return _track_recon(t)
 
     def run(self, scale: float, check: ClipCheck) -> ClipResult:
         """Fit every track with budgets at ``scale`` and repair until ``check`` passes (stats:
@@ -435,25 +477,32 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         budgets0 = initial_budgets(comp.reach, self.tol_units, scale)
-        tracks: dict[tuple[int, bool], Track] = {}
+        tracks: dict[tuple[int, int], Track] = {}
         order = []
-        for i, rot, b in zip(comp.track_nodes, comp.track_is_rot, budgets0):
-            if rot:
+        for i, part, b in zip(comp.track_nodes, comp.track_parts, budgets0):
+            if part == ROT:
                 q = self.motion.rotations[:, i]
-                if np.all(q == q[0]) and np.array_equal(q[0], [0.0, 0.0, 0.0, 1.0]):
-                    continue  # identity on every frame: nothing to store
+                rest = sk.rest_rotations[i]
+                if np.all(q == rest) or np.all(q == -rest):
+                    continue  # the rest rotation on every frame: nothing to store
                 t = Track(i, KIND_MRP, np.zeros((self.frames, 3)), None, np.zeros(4), np.zeros(3))
-            else:
+            elif part == TRANS:
                 tr = self.motion.translations[:, i]
                 if np.all(tr == f32_exact(sk.offsets[i])):
                     continue
                 t = Track(i, KIND_TRANSLATION, tr.copy(), tr, np.zeros(4), np.zeros(3))
+            else:
+                sc = self.motion.scales[:, i]
+                if np.all(sc == f32_exact(sk.rest_scales[i])):
+                    continue
+                t = Track(i, KIND_SCALE, sc.copy(), sc, np.zeros(4), np.zeros(3))
+            t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
             t.split = self.split
-            tracks[(i, rot)] = t
-            order.append((i, rot))
-        row_of = {key: k for k, key in enumerate(zip(comp.track_nodes, comp.track_is_rot))}
+            tracks[(i, part)] = t
+            order.append((i, part))
+        row_of = {key: k for k, key in enumerate(zip(comp.track_nodes, comp.track_parts))}
         reach_rows = [row_of[key] for key in order]
         reach = TrackReach(comp.reach.affects[reach_rows], comp.reach.lever[reach_rows],
                            comp.reach.is_rotation[reach_rows])
@@ -514,13 +563,14 @@ def _track_values(track: Track) -> np.ndarray:
 
 
 def _track_recon(track: Track) -> np.ndarray:
-    """What the runtime decodes for a track on every frame: local rotation or translation."""
+    """What the runtime decodes for a track on every frame: local rotation, translation or
+    scale."""
     frames = len(track.values)
     if track.keys is None:
-        if track.kind == KIND_TRANSLATION:
+        if track.kind in VECTOR_KINDS:
             return np.broadcast_to(track.constant, (frames, 3))
         return np.broadcast_to(track.constant, (frames, 4))
     values = _track_values(track)
-    if track.kind == KIND_TRANSLATION:
+    if track.kind in VECTOR_KINDS:
         return values
     return _track_rotations(track, values)

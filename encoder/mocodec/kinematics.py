@@ -12,29 +12,54 @@ from .rotations import quat_angle, quat_multiply, quat_rotate
 
 
 def forward_kinematics(
-    skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` from local transforms.
+    skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray,
+    scales: np.ndarray | None = None, world_scales: bool = False,
+) -> tuple[np.ndarray, ...]:
+    """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` from local transforms (and
+    with ``world_scales`` the world scales ``(F, N, 3)``).
 
-    ``rotations`` (F, N, 4) and ``translations`` (F, N, 3) are local (parent-relative).
+    ``rotations`` (F, N, 4), ``translations`` and ``scales`` (F, N, 3, default 1) are local
+    (parent-relative). Composed as the runtime does (``mcd_compose``): rotation ``p.r c.r``,
+    translation ``p.t + p.r (p.s * c.t)``, scale ``p.s * c.s`` component-wise. With a
+    non-uniform scale above a rotated child this differs from a glTF matrix product (which
+    would shear); the positions of the nodes are the same wherever the scale is uniform.
     """
     rotations = np.asarray(rotations, dtype=np.float64)
     translations = np.asarray(translations, dtype=np.float64)
     world_rot = np.empty_like(rotations)
     world_pos = np.empty_like(translations)
+    world_scale = None
+    if scales is not None:
+        scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape)
+        world_scale = np.empty_like(translations)
     for i, p in enumerate(skeleton.parents):
         if p < 0:
             world_rot[:, i] = rotations[:, i]
             world_pos[:, i] = translations[:, i]
+            if world_scale is not None:
+                world_scale[:, i] = scales[:, i]
         else:
             world_rot[:, i] = quat_multiply(world_rot[:, p], rotations[:, i])
-            world_pos[:, i] = world_pos[:, p] + quat_rotate(world_rot[:, p], translations[:, i])
+            t = translations[:, i] if world_scale is None else world_scale[:, p] * translations[:, i]
+            world_pos[:, i] = world_pos[:, p] + quat_rotate(world_rot[:, p], t)
+            if world_scale is not None:
+                world_scale[:, i] = world_scale[:, p] * scales[:, i]
+    if world_scales:
+        if world_scale is None:
+            world_scale = np.ones_like(translations)
+        return world_rot, world_pos, world_scale
     return world_rot, world_pos
+
+
+def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` of a motion, its scales
+    composed."""
+    return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
 
 
 def world_positions(motion: Motion) -> np.ndarray:
     """World positions ``(F, N, 3)`` of every joint and end site, file units."""
-    return forward_kinematics(motion.skeleton, motion.rotations, motion.translations)[1]
+    return motion_world(motion)[1]
 
 
 def lever_arms(skeleton: Skeleton, positions: np.ndarray) -> np.ndarray:
@@ -69,4 +94,5 @@ def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
     rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
     trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])
-    return forward_kinematics(motion.skeleton, rot, trans)[1], step, turn
+    scale = 0.5 * (motion.scales[:-1] + motion.scales[1:])
+    return forward_kinematics(motion.skeleton, rot, trans, scale)[1], step, turn

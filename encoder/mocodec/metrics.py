@@ -191,13 +191,19 @@ class SizeReport:
 
 
 def raw_bvh_bytes(motion: Motion) -> int:
-    """Every BVH channel of every frame as float32."""
-    return motion.skeleton.channel_count * motion.frame_count * 4
+    """Every source channel of every frame as float32: the BVH channels, or for a clip without
+    them (glTF) the animated components (4 per rotation, 3 per translation and scale)."""
+    if motion.skeleton.channel_count:
+        return motion.skeleton.channel_count * motion.frame_count * 4
+    per_node = motion.animated() @ np.array([4, 3, 3])
+    return int(per_node.sum()) * motion.frame_count * 4
 
 
 def raw_acl_bytes(motion: Motion) -> int:
-    """ACL's convention: 40 bytes per node (joints and end sites) per frame."""
-    return motion.skeleton.node_count * motion.frame_count * ACL_BYTES_PER_BONE_SAMPLE
+    """ACL's convention: 40 bytes per node (joints and end sites; not the virtual end points
+    added to glTF leaves) per frame."""
+    nodes = motion.skeleton.node_count - int(motion.skeleton.is_virtual.sum())
+    return nodes * motion.frame_count * ACL_BYTES_PER_BONE_SAMPLE
 
 
 def size_report(motions: list[Motion], asset_bytes: int) -> SizeReport:

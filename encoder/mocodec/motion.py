@@ -3,8 +3,11 @@
 A :class:`Skeleton` is a forest of nodes in parent-first order. Nodes are BVH joints and End
 Sites (``is_end_site``); each keeps its BVH channel layout so a clip can be written back as the
 BVH it came from. A :class:`Motion` holds, per frame and node, the local rotation as a unit
-quaternion (``x y z w``, sign-continuous over time) and the local translation (the rest offset,
-or the position channels where the node has them: BVH position channels replace the OFFSET).
+quaternion (``x y z w``, sign-continuous over time), the local translation (the rest offset, or the position channels
+where the node has them: BVH position channels replace the OFFSET) and the local scale (the rest
+scale, 1 for BVH; glTF animates it). A node's world transform composes the runtime's way
+(:mod:`mocodec.kinematics`): rotation ``p.r * c.r``, translation ``p.t + p.r * (p.s * c.t)``,
+scale ``p.s * c.s``.
 """
 from __future__ import annotations
 
@@ -166,9 +169,15 @@ class Motion:
         Local translations, file units: the rest offset, with the position channels
         substituted on the axes the node has them.
     frame_time : float
-        Seconds per frame (BVH ``Frame Time``).
+        Seconds per frame (BVH ``Frame Time``; for glTF the rate it was resampled at).
     name : str
-        Clip name (the file stem for files read from disk).
+        Clip name (the file stem for files read from disk, the animation's name for glTF).
+    scales : (F, N, 3) float array, default the skeleton's rest scales on every frame
+        Local scales.
+    source : dict, optional
+        Where the clip came from and how it was sampled (the glTF reader records the file,
+        the animation, the resampling rate and the interpolation the error is measured
+        against; ``start_s``, the source time of frame 0).
     """
 
     skeleton: Skeleton
@@ -179,10 +188,15 @@ class Motion:
     source_channels: np.ndarray | None = field(default=None, repr=False)
     """The channel values as read (F, C), kept so a BVH can be written back exactly and so
     decoded Euler angles can follow the original's 360-degree branch."""
+    scales: np.ndarray | None = field(default=None, repr=False)
+    source: dict | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.rotations = np.asarray(self.rotations, dtype=np.float64)
         self.translations = np.asarray(self.translations, dtype=np.float64)
+        if self.scales is None:
+            self.scales = np.broadcast_to(self.skeleton.rest_scales, self.translations.shape).copy()
+        self.scales = np.asarray(self.scales, dtype=np.float64)
 
     @property
     def frame_count(self) -> int:
@@ -204,15 +218,34 @@ class Motion:
             raise MotionError(f"rotations have shape {self.rotations.shape}, expected (F, {n}, 4)")
         if self.translations.shape != self.rotations.shape[:2] + (3,):
             raise MotionError("translations do not match rotations")
+        if self.scales.shape != self.translations.shape:
+            raise MotionError("scales do not match translations")
         if self.frame_count < 1:
             raise MotionError("motion has no frames")
         if not (np.isfinite(self.frame_time) and self.frame_time > 0):
             raise MotionError(f"frame time {self.frame_time} is not positive")
-        if not (np.all(np.isfinite(self.rotations)) and np.all(np.isfinite(self.translations))):
+        if not (np.all(np.isfinite(self.rotations)) and np.all(np.isfinite(self.translations))
+                and np.all(np.isfinite(self.scales))):
             raise MotionError("non-finite values in the motion")
         norms = np.linalg.norm(self.rotations, axis=-1)
         if np.max(np.abs(norms - 1.0)) > 1e-6:
             raise MotionError("rotations are not unit quaternions")
+
+    def animated(self) -> np.ndarray:
+        """(N, 3) bool: per node, whether the clip may move its rotation, translation and
+        scale away from the rest pose: a BVH node with rotation / position channels, or any
+        node whose value differs from its rest on some frame (glTF nodes have no channels)."""
+        sk = self.skeleton
+        n = sk.node_count
+        out = np.zeros((n, 3), dtype=bool)
+        out[:, 0] = [bool(sk.rotation_order(i)) for i in range(n)]
+        out[:, 1] = [bool(sk.position_axes(i)) for i in range(n)]
+        rest_q = sk.rest_rotations[None]
+        same_q = np.all(self.rotations == rest_q, axis=-1) | np.all(self.rotations == -rest_q, axis=-1)
+        out[:, 0] |= ~np.all(same_q, axis=0)
+        out[:, 1] |= np.any(self.translations != sk.offsets[None], axis=(0, 2))
+        out[:, 2] = np.any(self.scales != sk.rest_scales[None], axis=(0, 2))
+        return out
 
     # ----------------------------------------------------------------- channels <-> model
     @classmethod
@@ -295,6 +328,8 @@ class Motion:
             self.frame_time,
             self.name,
             source_channels=src,
+            scales=self.scales[start:stop],
+            source=self.source,
         )
 
 
@@ -315,6 +350,16 @@ def _euler_any_order(q: np.ndarray, order: str) -> np.ndarray:
     flip = np.abs(full[..., 2]) > 90.0
     full[flip] = np.array([180.0, 180.0, 180.0]) + [1.0, -1.0, 1.0] * full[flip]
     return full[..., :2]
+
+
+def unique_name(base: str, used: set[str], sep: str = "_") -> str:
+    """``base``, or ``base{sep}2``, ``base{sep}3`` ... the first not in ``used`` (added to it)."""
+    name, k = base, 1
+    while name in used:
+        k += 1
+        name = f"{base}{sep}{k}"
+    used.add(name)
+    return name
 
 
 def concatenate_names(motions: Sequence[Motion]) -> list[str]:

@@ -20,7 +20,8 @@ except ImportError as exc:  # pragma: no cover - a broken install, reported plai
         "encoder with its build step (pip install -e ./encoder, or make venv)"
     ) from exc
 
-KIND_MRP, KIND_TWIST, KIND_TRANSLATION = lib.MCF_KIND_MRP, lib.MCF_KIND_TWIST, lib.MCF_KIND_TRANSLATION
+KIND_MRP, KIND_TWIST, KIND_TRANSLATION, KIND_SCALE = (lib.MCF_KIND_MRP, lib.MCF_KIND_TWIST,
+                                                     lib.MCF_KIND_TRANSLATION, lib.MCF_KIND_SCALE)
 
 
 def _f64(a: np.ndarray) -> np.ndarray:

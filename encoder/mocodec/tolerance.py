@@ -20,6 +20,9 @@ import numpy as np
 
 from .motion import Skeleton
 
+DEFAULT_TOLERANCE_CM = 1.0
+"""The tolerance of the command line and the Python API when none is given."""
+
 EFFECTOR_PATTERN = re.compile(r"hand|foot|toe|head|wrist|ankle|finger|thumb", re.IGNORECASE)
 
 ClipCheck = Callable[[bytes], np.ndarray]

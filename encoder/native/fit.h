@@ -6,10 +6,12 @@
 #include <stdint.h>
 
 /* Error kinds of a curve (keyframes.KIND_*): the angle between target rotations and the
- * rotations an MRP or twist + MRP curve decodes to, or the distance of a translation curve. */
+ * rotations an MRP or twist + MRP curve decodes to, or the distance of a translation or
+ * scale curve from its target. */
 #define MCF_KIND_MRP 1
 #define MCF_KIND_TWIST 2
 #define MCF_KIND_TRANSLATION 3
+#define MCF_KIND_SCALE 4
 
 /* One curve to key (curves.fit_keys): every array C-contiguous float64. */
 typedef struct {
@@ -17,7 +19,7 @@ typedef struct {
     int32_t dims;               /* values per frame: 3, or 4 for a twist (angle + MRP) */
     int64_t frames;
     const double* deq;          /* (frames, dims) each frame's value as the decoder sees it */
-    const double* target;       /* (frames, 4) rotations or (frames, 3) translations */
+    const double* target;       /* (frames, 4) rotations or (frames, 3) translations / scales */
     const double* ref;          /* (4,) reference rotation x y z w */
     const double* axis;         /* (3,) twist axis */
     const double* budget;       /* (frames,) allowed error per frame */

@@ -90,7 +90,7 @@ static void quat_from_mrp(const double* p, double* q) {
 /* Error of one sample: rotations.quat_angle(target, decoded) or the translation distance. */
 static double sample_error(const mcf_curve* c, const double* v, const double* t) {
     double m[4], r[4], rot[4], rel[4], conj[4];
-    if (c->kind == MCF_KIND_TRANSLATION) {
+    if (c->kind == MCF_KIND_TRANSLATION || c->kind == MCF_KIND_SCALE) {
         const double dx = v[0] - t[0], dy = v[1] - t[1], dz = v[2] - t[2];
         return sqrt(dx * dx + dy * dy + dz * dz);
     }
@@ -111,7 +111,9 @@ static double sample_error(const mcf_curve* c, const double* v, const double* t)
     return 2.0 * atan2(sqrt(rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2]), fabs(rel[3]));
 }
 
-static int target_dims(const mcf_curve* c) { return c->kind == MCF_KIND_TRANSLATION ? 3 : 4; }
+static int target_dims(const mcf_curve* c) {
+    return c->kind == MCF_KIND_TRANSLATION || c->kind == MCF_KIND_SCALE ? 3 : 4;
+}
 
 /* Error of frame f, and of the half-way sample f + 1/2 into *half when half is not NULL. */
 static double errors_at(const keyset* s, int64_t f, double* half) {
@@ -147,7 +149,13 @@ static int region_fails(const keyset* s, int64_t lo, int64_t hi) {
     return 0;
 }
 
-static int64_t cell_of(int64_t f, int32_t grid) { return f == 0 ? 0 : (f - 1) / grid + 1; }
+/* Key cell of frame f of F (curves.fit_keys_reference): frame 0 and, from three frames on,
+ * the last frame have cells of their own; frames 1 ... F - 2 are in cells of grid frames. */
+static int64_t cell_of(int64_t f, int32_t grid, int64_t F) {
+    if (f == 0) return 0;
+    if (F > 2 && f == F - 1) return (F - 3) / grid + 2;
+    return (f - 1) / grid + 1;
+}
 
 /* Drop keys the curve can do without (curves._remove_keys): every fourth key at a time, a
  * removal kept when no sample of its region (keys i - 2 ... i + 2) goes over budget. */
@@ -201,7 +209,7 @@ int32_t mcf_fit_keys(const mcf_curve* c, int64_t* keys, int64_t* n_keys, const u
         (c->dims != 3 && c->dims != 4))
         return -1;
     k = *n_keys;
-    ncells = cell_of(F - 1, grid) + 1;
+    ncells = cell_of(F - 1, grid, F) + 1;
     err = malloc(sizeof(double) * (size_t)F);
     ratio = malloc(sizeof(double) * (size_t)F);
     rank = malloc(sizeof(double) * (size_t)F);
@@ -227,7 +235,7 @@ int32_t mcf_fit_keys(const mcf_curve* c, int64_t* keys, int64_t* n_keys, const u
         memset(taken, 0, (size_t)ncells);
         for (i = 0; i < k; ++i) {
             is_key[keys[i]] = 1;
-            taken[cell_of(keys[i], grid)] = 1;
+            taken[cell_of(keys[i], grid, F)] = 1;
         }
         /* A frame is bad when it, or a half-way sample next to it, is over budget; a half-way
          * sample between two keys flags the frames beyond them too (their keys shape it). */
@@ -270,15 +278,15 @@ int32_t mcf_fit_keys(const mcf_curve* c, int64_t* keys, int64_t* n_keys, const u
             for (pass = grid > 1 ? 0 : 2; pass < 3 && best < 0; ++pass) {
                 for (f = lo; f <= hi; ++f) {
                     int ok;
-                    if (pass == 0) ok = f >= 1 && (f - 1) % grid == 0 && !taken[cell_of(f, grid)];
-                    else if (pass == 1) ok = bad[f] && !taken[cell_of(f, grid)];
+                    if (pass == 0) ok = f >= 1 && (f - 1) % grid == 0 && !taken[cell_of(f, grid, F)];
+                    else if (pass == 1) ok = bad[f] && !taken[cell_of(f, grid, F)];
                     else ok = bad[f] && !is_key[f];
                     if (ok && (best < 0 || rank[f] > rank[best])) best = f;
                 }
             }
             if (best >= 0) {
                 /* Two intervals may pick frames of one cell (a cell straddling a key): keep one. */
-                if (n_chosen > 0 && cell_of(chosen[n_chosen - 1], grid) == cell_of(best, grid)) continue;
+                if (n_chosen > 0 && cell_of(chosen[n_chosen - 1], grid, F) == cell_of(best, grid, F)) continue;
                 chosen[n_chosen++] = best;
             }
         }

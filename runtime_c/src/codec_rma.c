@@ -1,14 +1,14 @@
-/* Codec `rma`: per-track Catmull-Rom keys placed freely in time, sampled in place from the
- * asset's bytes (docs/FORMAT.md, RMAL version 2).
+/* Codec `rma`: per-track Catmull-Rom keys, sampled in place from the asset's bytes
+ * (docs/FORMAT.md, RMAL version 2).
  *
- * A track's keys come in groups of G. A fixed-size group entry gives the bit offset of the
- * group's records, its first key whole (frame and value) and the widths of the records'
- * fields; each further key is one record: its gap to the key before and, per component, its
- * residual from a prediction, at the group's widths, outliers stored whole after the records.
- * A seek table names the group of every 2^s-th frame. A random access finds the group by the
- * seek table and a step or two and decodes at most a group's records (and, when x lies just
- * after a group's first key, the group before); sequential playback keeps each track's four
- * keys and a decoding cursor in the scratch and decodes one record per key interval. */
+ * Every part of a track is read directly. Key times: cells of frames in unary (a one per key,
+ * a zero closing each cell) with a rank entry every 64 cells, so the key at or before a frame
+ * is a rank entry and a popcount or two away and its neighbours the next ones. Key values: groups of G keys; a group's row holds its first key whole (the
+ * anchor), its records' bit offset and widths, and each other key is one fixed-width record,
+ * its residual from the chord between the group's anchor and the next, so any key's value is
+ * one read (an escaped residual, rare, a short walk to its outlier). A random access reads the
+ * four keys around x; sequential playback keeps them in the scratch and reads one key per key
+ * interval. */
 #include <string.h>
 
 #include "internal.h"
@@ -16,9 +16,9 @@
 #define SECTION_HEADER 16u
 #define PAYLOAD_HEADER 32u
 #define MAX_GROUP_SHIFT 6u
-#define MAX_SEEK_SHIFT 24u
+#define RANK_SHIFT 6u /* a rank entry every 64 cells */
 #define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
-#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64, products below 2^62 */
+#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
@@ -47,11 +47,14 @@ typedef struct header {
 /* Everything about one track that its descriptor and the clip's frame count give. Offsets
  * are bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, split, predictor, offset_bits, seek_shift, group_shift, frame_bits;
-    uint8_t group_bits, abits[4];
-    uint32_t keys, groups, seeks, entry_bits, data_bytes;
+    uint8_t kind, dims, split, cell_shift, group_shift, offset_bits, rank_bits, in_cell_bits;
+    uint8_t abits[4], anchor_bits, reserved[3]; /* anchor_bits: the sum of abits */
+    uint32_t keys, frames;
+    uint32_t cells, words;          /* key cells (the last is the last frame's), unary words */
+    uint32_t rows, row_bits;        /* group table: one row per group, and one for the last anchor */
+    uint32_t data_bytes;
     float step[4];
-    uint32_t seek, table, data, end;
+    uint32_t bitmap, rank, places, table, data, end;
 } track_layout;
 
 static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
@@ -75,205 +78,302 @@ static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
     return MCD_OK;
 }
 
+/* Bytes of n fields of `bits` each, padded to 4 bytes. */
+static uint64_t packed_bytes(uint64_t n, uint64_t bits) {
+    return 4u * ((n * bits + 31u) / 32u);
+}
+
 /* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`;
  * checks what the descriptor alone shows and that the parts fit before `limit`. */
 static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit, track_layout* t) {
     uint32_t c;
-    uint64_t end, entry;
+    uint64_t end, row;
     t->kind = d[0];
     if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
     t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the first segment detached (bit 0), the predictor (bits 1-2), groups of
+    /* Byte 1: the first segment detached (bit 0), key cells of 2^(bits 1-2) frames, groups of
      * 2^(bits 3-5) keys. */
     t->split = d[1] & 1u;
-    t->predictor = (d[1] >> 1) & 3u;
+    t->cell_shift = (d[1] >> 1) & 3u;
     t->group_shift = (d[1] >> 3) & 7u;
     t->offset_bits = d[2];
-    t->seek_shift = d[3];
+    t->in_cell_bits = d[3];
     t->keys = mcd_rd_u32(d + 4);
     t->data_bytes = mcd_rd_u32(d + 8);
-    if ((d[1] >> 6) || t->predictor > 2 || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    t->frames = frames;
+    if ((d[1] >> 6) || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
+    /* Byte 3: bits of each key's place in its cell (0, or the cell shift when some key is
+     * off its cell's first frame). */
+    if (t->in_cell_bits && t->in_cell_bits != t->cell_shift) return MCD_ERROR_MALFORMED;
     if (t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
-    if (t->seek_shift > MAX_SEEK_SHIFT) return MCD_ERROR_MALFORMED;
     if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
     if (t->data_bytes & 3u) return MCD_ERROR_MALFORMED;
     t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 12);
     if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 36);
-    t->frame_bits = (uint8_t)bits_for(frames - 1u);
-    t->groups = ((t->keys - 1u) >> t->group_shift) + 1u;
-    t->group_bits = (uint8_t)bits_for(t->groups - 1u);
-    t->seeks = ((frames - 1u) >> t->seek_shift) + 1u;
-    entry = t->offset_bits + (uint64_t)t->frame_bits + WIDTH_BITS * (1u + (uint64_t)t->dims);
+    /* Cells: frame 0, frames 1 ... F - 2 in cells of 2^s, the last frame. */
+    t->cells = frames > 1u ? ((frames - 2u + (1u << t->cell_shift) - 1u) >> t->cell_shift) + 2u : 1u;
+    t->words = (uint32_t)(((uint64_t)t->keys + t->cells + 63u) / 64u);
+    t->rank_bits = (uint8_t)bits_for(t->keys);
+    t->rows = ((t->keys - 1u + (1u << t->group_shift) - 1u) >> t->group_shift) + 1u;
+    row = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims;
+    t->anchor_bits = 0;
+    t->reserved[0] = t->reserved[1] = t->reserved[2] = 0;
     for (c = 0; c < 4; ++c) {
         t->abits[c] = d[16 + c];
         if (c < t->dims) {
             if (t->abits[c] < 1 || t->abits[c] > 31) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds(t->step[c]) || t->step[c] < 0.0f) return MCD_ERROR_MALFORMED;
-            entry += t->abits[c];
+            row += t->abits[c];
+            t->anchor_bits = (uint8_t)(t->anchor_bits + t->abits[c]);
         } else if (t->abits[c]) {
             return MCD_ERROR_MALFORMED;
         }
     }
-    t->entry_bits = (uint32_t)entry;
-    t->seek = at;
-    end = at + 4u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u);
-    if (end > limit) return MCD_ERROR_MALFORMED;
-    t->table = (uint32_t)end;
-    end += 4u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u);
-    if (end > limit) return MCD_ERROR_MALFORMED;
-    t->data = (uint32_t)end;
+    t->row_bits = (uint32_t)row;
+    t->bitmap = at;
+    end = at + 8u * (uint64_t)t->words;
+    t->rank = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes((t->cells + 63u) / 64u, t->rank_bits);
+    t->places = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes(t->in_cell_bits ? t->keys : 0u, t->in_cell_bits);
+    t->table = (uint32_t)(end > limit ? limit : end);
+    end += packed_bytes(t->rows, t->row_bits);
+    t->data = (uint32_t)(end > limit ? limit : end);
     end += t->data_bytes;
     if (end > limit) return MCD_ERROR_MALFORMED;
     t->end = (uint32_t)end;
     return MCD_OK;
 }
 
-/* ---------------------------------------------------------------- key decoding */
-/* Decodes a track's keys in index order from a group's first key on: the current group's
- * record layout, and the last two decoded keys. */
-typedef struct cursor {
-    uint32_t group, key;  /* the group, and index of the key the next call decodes */
-    uint32_t left;        /* records left in the group */
-    uint32_t bit, exc;    /* bit positions (in the data area) of the next record and outlier */
-    uint32_t frame;       /* frame of the last decoded key */
-    uint32_t keybits;     /* bits of one record */
-    uint8_t shift[5];     /* each field's position in a record: gap, then four components */
-    uint8_t width[5];     /* (a component past the track's is a field of width 0) */
-    uint8_t pad[2];
-    uint32_t mask[5];     /* its mask, the code that escapes (a width-0 field never does), */
-    uint32_t escape[5];
-    uint32_t sign[5];     /* and its sign bit (0 for width 0), for the two's complement */
-    int32_t q[4], q2[4];  /* the last two decoded values, for the prediction */
-} cursor;
-
-/* floor(v / 2) for any sign (C's division truncates; a right shift of a negative number is
- * implementation-defined): the logical shift with the sign bit put back. */
-static int64_t floor_half(int64_t v) {
-    uint64_t u = (uint64_t)v >> 1;
-    return (int64_t)(v < 0 ? u | ((uint64_t)1 << 63) : u);
+/* ---------------------------------------------------------------- key times */
+static uint64_t bitmap_word(const uint8_t* p, const track_layout* t, uint32_t w) {
+    return mcd_rd_u64(p + t->bitmap + 8u * (size_t)w);
 }
 
-/* The first key's frame of group g. */
-static uint32_t group_frame(const uint8_t* p, const track_layout* t, uint32_t g) {
-    return mcd_read_bits(p + t->table, (uint64_t)g * t->entry_bits + t->offset_bits, t->frame_bits);
+/* The cell of frame f (0 ... F - 1), and the frame a key in cell c sits on. */
+static uint32_t cell_of(const track_layout* t, uint32_t f) {
+    if (f == 0) return 0;
+    if (f >= t->frames - 1u) return t->cells - 1u;
+    return ((f - 1u) >> t->cell_shift) + 1u;
 }
 
-/* The group holding the last key at or before frame xi: the seek table's group, then the
- * next ones while they start no later than xi. */
-static uint32_t find_group(const uint8_t* p, const track_layout* t, uint32_t xi) {
-    uint32_t g = mcd_read_bits(p + t->seek, (uint64_t)(xi >> t->seek_shift) * t->group_bits, t->group_bits);
-    while (g + 1u < t->groups && group_frame(p, t, g + 1u) <= xi) ++g;
-    return g;
+static uint32_t cell_frame(const track_layout* t, uint32_t c) {
+    if (c == 0) return 0;
+    if (c >= t->cells - 1u) return t->frames - 1u;
+    return 1u + ((c - 1u) << t->cell_shift);
 }
 
-/* Enter group g: its entry gives the record layout and the first key (value into q). */
-static void group_open(const uint8_t* p, const track_layout* t, uint32_t g, cursor* cur, int32_t q[4]) {
-    const uint8_t* table = p + t->table;
-    uint64_t bit = (uint64_t)g * t->entry_bits;
-    uint32_t c, n, first = g << t->group_shift, at = 0;
-    cur->group = g;
-    cur->bit = mcd_read_bits(table, bit, t->offset_bits);
-    bit += t->offset_bits;
-    cur->frame = mcd_read_bits(table, bit, t->frame_bits);
-    bit += t->frame_bits;
-    for (c = 0; c <= 4u; ++c) {
-        uint32_t w = c <= t->dims ? mcd_read_bits(table, bit, WIDTH_BITS) : 0u;
-        if (c <= t->dims) bit += WIDTH_BITS;
-        cur->shift[c] = (uint8_t)at;
-        cur->width[c] = (uint8_t)w;
-        cur->mask[c] = ((uint32_t)1 << w) - 1u;
-        /* The gap escapes with all ones, a residual with its most negative code. */
-        cur->escape[c] = !w ? UINT32_MAX : c == 0 ? cur->mask[0] : (uint32_t)1 << (w - 1u);
-        cur->sign[c] = w && c ? (uint32_t)1 << (w - 1u) : 0u;
-        at += w;
+/* The frame of key k, whose cell is c. */
+static uint32_t key_frame(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t c) {
+    uint32_t f = cell_frame(t, c);
+    return t->in_cell_bits ? f + mcd_read_bits(p + t->places, (uint64_t)k * t->in_cell_bits, t->in_cell_bits) : f;
+}
+
+/* The r-th set bit (from 0) of x, which has more than r. */
+static uint32_t select_in_word(uint64_t x, uint32_t r) {
+    uint32_t at = 0, n;
+    n = mcd_popcount(x & 0xFFFFFFFFu);
+    if (r >= n) r -= n, x >>= 32, at += 32;
+    n = mcd_popcount(x & 0xFFFFu);
+    if (r >= n) r -= n, x >>= 16, at += 16;
+    n = mcd_popcount(x & 0xFFu);
+    if (r >= n) r -= n, x >>= 8, at += 8;
+    while (r--) x &= x - 1u;
+    return at + mcd_lowest_bit(x);
+}
+
+/* The bit of the zero that closes cell c: from the start of c's 64-cell block (its cells and
+ * keys before it), the (c mod 64)-th zero on. The word bound only matters for bytes never
+ * validated. */
+static uint32_t cell_end(const uint8_t* p, const track_layout* t, uint32_t c) {
+    uint32_t r = c & 63u, n, w;
+    uint32_t pos = (c & ~63u) + mcd_read_bits(p + t->rank, (uint64_t)(c >> RANK_SHIFT) * t->rank_bits, t->rank_bits);
+    uint64_t x;
+    w = pos >> 6;
+    if (w >= t->words) return (t->words << 6) - 1u;
+    x = ~bitmap_word(p, t, w) & (~(uint64_t)0 << (pos & 63u));
+    n = mcd_popcount(x);
+    while (n <= r && w + 1u < t->words) {
+        r -= n;
+        x = ~bitmap_word(p, t, ++w);
+        n = mcd_popcount(x);
     }
-    cur->keybits = at;
-    for (c = 0; c < 4u; ++c) {
-        q[c] = cur->q[c] = cur->q2[c] = c < t->dims ? mcd_read_signed(table, bit, t->abits[c]) : 0;
-        if (c < t->dims) bit += t->abits[c];
-    }
-    n = t->keys - first < (1u << t->group_shift) ? t->keys - first : 1u << t->group_shift;
-    cur->left = n - 1u;
-    cur->exc = cur->bit + cur->left * cur->keybits;
-    cur->key = first + 1u;
+    return n > r ? (w << 6) + select_in_word(x, r) : (t->words << 6) - 1u;
 }
 
-/* Component c's residual in record word w, or, for its escape code, the outlier's value
- * (then *whole is set): two's complement in the group's width. */
-static inline int64_t field_value(const uint8_t* data, const track_layout* t, cursor* cur, uint64_t w, uint32_t c,
-                                  int* whole) {
-    uint32_t u = (uint32_t)(w >> cur->shift[c + 1u]) & cur->mask[c + 1u];
-    if (u == cur->escape[c + 1u]) { /* rare */
-        int64_t v = mcd_read_signed(data, cur->exc, t->abits[c]);
-        cur->exc += t->abits[c];
-        *whole = 1;
-        return v;
-    }
-    *whole = 0;
-    return (int64_t)(u ^ cur->sign[c + 1u]) - (int64_t)cur->sign[c + 1u];
+/* The last one below bit u (key 0's is bit 0), the first one above bit u (the last key's is
+ * above every other). */
+static uint32_t one_before(const uint8_t* p, const track_layout* t, uint32_t u) {
+    uint32_t w = u >> 6;
+    uint64_t m = bitmap_word(p, t, w) & (((uint64_t)1 << (u & 63u)) - 1u);
+    while (!m && w > 0) m = bitmap_word(p, t, --w);
+    return m ? (w << 6) + mcd_highest_bit(m) : 0u;
 }
 
-static inline int32_t clamp_q(int64_t v) {
-    /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-    return (int32_t)(v > MAX_Q ? MAX_Q : v < -MAX_Q ? -MAX_Q : v);
+static uint32_t one_after(const uint8_t* p, const track_layout* t, uint32_t u) {
+    uint32_t w = u >> 6;
+    uint64_t m = (u & 63u) == 63u ? 0u : bitmap_word(p, t, w) & (~(uint64_t)0 << ((u & 63u) + 1u));
+    while (!m && w + 1u < t->words) m = bitmap_word(p, t, ++w);
+    return m ? (w << 6) + mcd_lowest_bit(m) : u;
 }
 
-/* Decode the key the cursor points at: its value into q, its frame into cur->frame. */
-static void cursor_next(const uint8_t* p, const track_layout* t, cursor* cur, int32_t q[4]) {
-    const uint8_t* data = p + t->data;
-    uint64_t w;
-    uint32_t u, c, bit = cur->bit;
-    int64_t r[4];
-    int whole[4];
-    if (cur->left == 0) {
-        group_open(p, t, cur->key >> t->group_shift, cur, q);
+/* The frame of key k, whose one is at bit u (its cell is u - k). */
+static uint32_t key_frame_at(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t u) {
+    return key_frame(p, t, k, u - k);
+}
+
+/* ---------------------------------------------------------------- key values */
+/* One group as its row and the next row's anchor give it. */
+typedef struct group_view {
+    uint32_t row;         /* the row (group) number; UINT32_MAX: none loaded */
+    uint32_t bit;         /* bit offset of its records in the data area */
+    uint32_t span;        /* keys from its anchor to the next anchor (0 for the last row) */
+    uint32_t rec_bits;    /* bits of one record */
+    uint8_t width[4], shift[4];
+    int32_t a0[4], d[4];  /* its anchor, and the next one's difference from it */
+} group_view;
+
+/* The anchor of row e (the key e * G, or the last key for the last row). */
+static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
+    uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
+    uint32_t c;
+    a[3] = 0;
+    if (t->anchor_bits <= 57u) { /* one load for all components */
+        uint64_t w = mcd_rd_u64(p + t->table + (size_t)(bit >> 3)) >> (bit & 7u);
+        for (c = 0; c < t->dims; ++c) {
+            uint32_t n = t->abits[c];
+            uint64_t sign = (uint64_t)1 << (n - 1u), u = w & ((sign << 1) - 1u);
+            a[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
+            w >>= n;
+        }
         return;
     }
-    w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
-    if (cur->keybits > 57u) w |= mcd_rd_u64(data + (bit >> 3) + 7u) << (56u - (bit & 7u)); /* wide records */
-    u = (uint32_t)w & cur->mask[0];
-    if (u == cur->escape[0]) { /* an outlier gap: the frame whole */
-        cur->frame = mcd_read_bits(data, cur->exc, t->frame_bits);
-        cur->exc += t->frame_bits;
-    } else {
-        cur->frame += u + 1u;
+    for (c = 0; c < t->dims; ++c) {
+        a[c] = mcd_read_signed(p + t->table, bit, t->abits[c]);
+        bit += t->abits[c];
     }
-    /* Four components always: a track's missing fourth is a field of width 0. */
-    r[0] = field_value(data, t, cur, w, 0, &whole[0]);
-    r[1] = field_value(data, t, cur, w, 1, &whole[1]);
-    r[2] = field_value(data, t, cur, w, 2, &whole[2]);
-    r[3] = field_value(data, t, cur, w, 3, &whole[3]);
-    if (t->predictor) {
-        for (c = 0; c < 4u; ++c) {
-            int64_t pred = cur->q[c] + floor_half(((int64_t)cur->q[c] - cur->q2[c]) * t->predictor + 1);
-            cur->q2[c] = cur->q[c];
-            q[c] = cur->q[c] = clamp_q(whole[c] ? r[c] : pred + r[c]);
-        }
-    } else {
-        for (c = 0; c < 4u; ++c) {
-            cur->q2[c] = cur->q[c];
-            q[c] = cur->q[c] = clamp_q(whole[c] ? r[c] : (int64_t)cur->q[c] + r[c]);
-        }
+}
+
+static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)e * t->row_bits;
+    uint32_t c, at = 0, widths, first = e << t->group_shift;
+    g->row = e;
+    g->bit = mcd_read_bits(table, bit, t->offset_bits);
+    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims);
+    for (c = 0; c < 4u; ++c) {
+        uint32_t w = c < t->dims ? (widths >> (WIDTH_BITS * c)) & 15u : 0u;
+        g->width[c] = (uint8_t)w;
+        g->shift[c] = (uint8_t)at;
+        at += w;
     }
-    cur->bit = bit + cur->keybits;
-    cur->left--;
-    cur->key++;
+    g->rec_bits = at;
+    row_anchor(p, t, e, g->a0);
+    if (e + 1u < t->rows) {
+        int32_t a1[4];
+        g->span = t->keys - 1u - first < (1u << t->group_shift) ? t->keys - 1u - first : 1u << t->group_shift;
+        row_anchor(p, t, e + 1u, a1);
+        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 in valid payloads */
+    } else {
+        g->span = 0;
+        memset(g->d, 0, sizeof g->d);
+    }
+}
+
+/* floor(v / 2^s) for any sign (a right shift of a negative number is implementation-defined
+ * in C): the biased value shifted. |v| < 2^37. */
+static int64_t floor_shift(int64_t v, uint32_t s) {
+    const int64_t bias = (int64_t)1 << 40;
+    return (int64_t)((uint64_t)(v + (bias << s)) >> s) - bias;
+}
+
+/* floor(v / n), n > 0 (C's division truncates). */
+static int64_t floor_div(int64_t v, int64_t n) {
+    return v >= 0 ? v / n : -((-v + n - 1) / n);
+}
+
+/* A record's fields: bits [bit, bit + rec_bits) of the data area (rec_bits <= 60). */
+static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t bit) {
+    uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
+    if (g->rec_bits > 57u) w |= mcd_rd_u64(data + (bit >> 3) + 7u) << (56u - (bit & 7u)); /* wide records */
+    return w;
+}
+
+/* Component c's field of a record word holds the escape code 2^(w - 1) (never for width 0). */
+static int escaped(const group_view* g, uint64_t w, uint32_t c) {
+    uint32_t wc = g->width[c];
+    return wc && ((uint32_t)(w >> g->shift[c]) & (((uint32_t)1 << wc) - 1u)) == (uint32_t)1 << (wc - 1u);
+}
+
+/* Record i's component c when its field holds the escape code: the outlier, stored whole
+ * after the group's records in record and component order. */
+static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
+    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit;
+    for (j = 1; j < i; ++j, bit += g->rec_bits) {
+        uint64_t w = record_word(data, g, bit);
+        for (k = 0; k < t->dims; ++k)
+            if (escaped(g, w, k)) at += t->abits[k];
+    }
+    {
+        uint64_t w = record_word(data, g, bit);
+        for (k = 0; k < c; ++k)
+            if (escaped(g, w, k)) at += t->abits[k];
+    }
+    return mcd_read_signed(data, at, t->abits[c]);
+}
+
+/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read. */
+static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int32_t q[4]) {
+    const uint8_t* data = p + t->data;
+    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, bit, full;
+    uint64_t w;
+    if (i == 0) { /* an anchor */
+        if (g->row == e) memcpy(q, g->a0, 4u * sizeof q[0]);
+        else row_anchor(p, t, e, q);
+        return;
+    }
+    if (g->row != e) group_load(p, t, e, g);
+    if (i >= g->span) { /* the track's last key: the next anchor */
+        for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+        return;
+    }
+    bit = g->bit + (i - 1u) * g->rec_bits;
+    w = record_word(data, g, bit);
+    full = g->span == (1u << t->group_shift);
+    q[3] = 0;
+    for (c = 0; c < t->dims; ++c) {
+        uint32_t wc = g->width[c];
+        int64_t pred = (int64_t)g->d[c] * (int64_t)i;
+        pred = g->a0[c] + (full ? floor_shift(pred, t->group_shift) : floor_div(pred, (int64_t)g->span));
+        if (wc) {
+            uint32_t sign = (uint32_t)1 << (wc - 1u), u = (uint32_t)(w >> g->shift[c]) & ((sign << 1) - 1u);
+            if (u == sign) { /* escaped: rare */
+                q[c] = outlier(data, t, g, i, c);
+                continue;
+            }
+            pred += (int64_t)(u ^ sign) - (int64_t)sign;
+        }
+        /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
+        q[c] = (int32_t)(pred > MAX_Q ? MAX_Q : pred < -MAX_Q ? -MAX_Q : pred);
+    }
 }
 
 /* ---------------------------------------------------------------- sampling state */
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
- * last sample (i - 1 ... i + 2, ends repeated) with their curve, and a cursor after them. */
+ * last sample (i - 1 ... i + 2, ends repeated) with their curve, and the last group read. */
 typedef struct track_state {
     track_layout L;
     mcd_quat ref;
     float axis[4];
     uint32_t valid;
-    uint32_t i;    /* the segment [key i, key i + 1] the curve below belongs to */
-    float t[4];    /* frames of keys i - 1 ... i + 2 */
-    float v[4][4]; /* their values */
-    float t1, t2, inv_h;
+    uint32_t i;     /* the segment [key i, key i + 1] the curve below belongs to */
+    uint32_t u3;    /* the unary bit of key min(i + 2, last) */
+    uint32_t pad;
+    float t[4];     /* frames of keys i - 1 ... i + 2 */
+    float v[4][4];  /* their values */
+    float t1, t2, inv_h, pad2;
     float coef[4][4];
-    cursor cur;    /* decodes the key after key min(i + 2, last) next */
+    group_view group;
 } track_state;
 
 typedef struct node_plan {
@@ -285,7 +385,7 @@ typedef struct node_plan {
 /* The scratch sizes are part of the format (docs/FORMAT.md, RMAL "Sampling"): changing these
  * structures is a new section version. Plain 32-bit fields only, so every ABI agrees. */
 typedef char node_plan_is_48_bytes[sizeof(node_plan) == 48u ? 1 : -1];
-typedef char track_state_is_396_bytes[sizeof(track_state) == 396u ? 1 : -1];
+typedef char track_state_is_348_bytes[sizeof(track_state) == 348u ? 1 : -1];
 
 static size_t rma_scratch_size(const mcd_clip_view* v) {
     uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
@@ -331,51 +431,36 @@ static void set_curve(track_state* ts) {
     ts->valid = 1;
 }
 
-/* Random access: the segment holding frame position x, its four keys decoded afresh. */
+/* Random access: the segment holding frame position x, its four keys read afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, g, k, i, s, j;
-    int32_t q[4], ring_q[4][4]; /* the last four decoded keys, key k at k & 3 */
-    uint32_t ring_f[4];
-    cursor* cur = &ts->cur;
-    g = find_group(p, t, xi);
-    /* Key i - 1 lies in group g - 1 when key i is g's first: x before g's second key, or g's
-     * second key the last (whose segment is the one before it). */
-    if (g > 0) {
-        uint32_t second = (g << t->group_shift) + 1u;
-        if (second >= last) {
-            --g;
-        } else {
-            cursor peek;
-            group_open(p, t, g, &peek, q);
-            cursor_next(p, t, &peek, q);
-            if (peek.frame > xi) --g;
-        }
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
+    int32_t q[4];
+    if (xi > t->frames - 1u) xi = t->frames - 1u;
+    c = cell_of(t, xi);
+    u[1] = cell_end(p, t, c);
+    i = u[1] - c - 1u; /* the ones before the zero closing c are the keys in cells up to c */
+    u[1] = one_before(p, t, u[1]);
+    /* x at the last frame: its segment is the one before. Keys of x's own cell after x (at
+     * most a cell's frames; key 0 is frame 0): the key before them. */
+    if (i >= last) {
+        i = last - 1u;
+        u[1] = one_before(p, t, u[1]);
     }
-    /* Decode on from group g's first key to the first key after x, then to key i + 2. */
-    group_open(p, t, g, cur, q);
-    k = g << t->group_shift;
-    ring_f[k & 3u] = cur->frame;
-    memcpy(ring_q[k & 3u], q, sizeof q);
-    while (k < last && cur->frame <= xi) {
-        cursor_next(p, t, cur, q);
-        ++k;
-        ring_f[k & 3u] = cur->frame;
-        memcpy(ring_q[k & 3u], q, sizeof q);
+    while (t->in_cell_bits && i > 0 && key_frame_at(p, t, i, u[1]) > xi) {
+        i--;
+        u[1] = one_before(p, t, u[1]);
     }
-    i = cur->frame > xi ? k - 1u : k;
-    if (i >= last) i = last - 1u; /* x at the last frame: the last segment */
-    while (k < i + 2u && k < last) {
-        cursor_next(p, t, cur, q);
-        ++k;
-        ring_f[k & 3u] = cur->frame;
-        memcpy(ring_q[k & 3u], q, sizeof q);
-    }
+    u[0] = i > 0 ? one_before(p, t, u[1]) : u[1];
+    u[2] = one_after(p, t, u[1]);
+    u[3] = i + 2u <= last ? one_after(p, t, u[2]) : u[2];
     ts->i = i;
+    ts->u3 = u[3];
     for (s = 0; s < 4u; ++s) {
-        j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
+        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
         if (j > last) j = last;
-        store_key(ts, s, ring_f[j & 3u], ring_q[j & 3u]);
+        key_value(p, t, &ts->group, j, q);
+        store_key(ts, s, key_frame_at(p, t, j, u[s]), q);
     }
     set_curve(ts);
 }
@@ -399,8 +484,9 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
             ts->i++;
             if (ts->i + 2u <= last) {
                 int32_t q[4];
-                cursor_next(p, &ts->L, &ts->cur, q);
-                store_key(ts, 3, ts->cur.frame, q);
+                ts->u3 = one_after(p, &ts->L, ts->u3);
+                key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
+                store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
             } else {
                 repeat_slot(ts, 3, 2);
             }
@@ -428,11 +514,12 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
         track_state* ts = &tracks[i];
         memset(ts, 0, sizeof *ts);
         track_geometry(d, H.frames, at, H.size, &ts->L);
+        ts->group.row = UINT32_MAX;
         if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
         if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
-        if (ts->L.keys == 1u) { /* one frame: the single key is group 0's first */
+        if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
             int32_t q[4];
-            group_open(p, &ts->L, 0, &ts->cur, q);
+            row_anchor(p, &ts->L, 0, q);
             store_key(ts, 0, 0, q);
         }
         at = ts->L.end;
@@ -488,56 +575,95 @@ static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tran
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Every rule of one track's seek table, group table and records, decoding every key. */
-static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t frames) {
-    uint64_t data_bits = 8u * (uint64_t)t->data_bytes, bit = 0, b;
-    uint32_t g, c, k, key = 0, j, last_frame = 0;
-    cursor cur;
-    /* Padding after the seek entries and the group entries is zero. */
-    for (b = (uint64_t)t->seeks * t->group_bits; b < 32u * (((uint64_t)t->seeks * t->group_bits + 31u) / 32u); ++b)
-        if (mcd_read_bits(p + t->seek, b, 1)) return MCD_ERROR_MALFORMED;
-    for (b = (uint64_t)t->groups * t->entry_bits; b < 32u * (((uint64_t)t->groups * t->entry_bits + 31u) / 32u); ++b)
-        if (mcd_read_bits(p + t->table, b, 1)) return MCD_ERROR_MALFORMED;
-    /* Every key in order: records and outliers within the data area, groups back to back. */
-    for (g = 0; g < t->groups; ++g) {
-        uint32_t n = t->keys - (g << t->group_shift);
-        int32_t q[4];
-        if (n > (1u << t->group_shift)) n = 1u << t->group_shift;
-        group_open(p, t, g, &cur, q);
-        if (cur.bit != bit || (uint64_t)cur.bit + (uint64_t)(n - 1u) * cur.keybits > data_bits) return MCD_ERROR_MALFORMED;
-        for (k = 0; k < n; ++k) {
-            if (k > 0) {
-                /* The record's escape codes tell how many outlier bits it consumes. */
-                uint64_t need = cur.exc;
-                if (cur.width[0] && mcd_read_bits(p + t->data, cur.bit, cur.width[0]) == cur.escape[0]) need += t->frame_bits;
-                for (c = 0; c < t->dims; ++c)
-                    if (cur.width[c + 1] &&
-                        mcd_read_bits(p + t->data, (uint64_t)cur.bit + cur.shift[c + 1], cur.width[c + 1]) == cur.escape[c + 1])
-                        need += t->abits[c];
-                if (need > data_bits) return MCD_ERROR_MALFORMED;
-                cursor_next(p, t, &cur, q);
+/* Bits [from, to) of p are zero. */
+static int zero_bits(const uint8_t* p, uint64_t from, uint64_t to) {
+    for (; from < to; ++from)
+        if (mcd_read_bits(p, from, 1)) return 0;
+    return 1;
+}
+
+/* Every rule of one track's bitmap, rank table, group table and records, reading every key. */
+static mcd_result check_track(const uint8_t* p, const track_layout* t) {
+    uint64_t total = 0, data_bits = 8u * (uint64_t)t->data_bytes, bits;
+    uint32_t b, e, c, j;
+    group_view g;
+    /* Key times: K ones and NC zeros, zero bits after them; key 0 alone in cell 0, the last
+     * key alone in the last cell; frames increasing, interior keys before the last frame; each
+     * rank entry the keys in the cells below its block. */
+    {
+        uint64_t n = (uint64_t)t->keys + t->cells, bit;
+        uint32_t k = 0, cell = 0, last_frame = 0, in_cell = 0;
+        if (!zero_bits(p + t->bitmap, n, 64u * (uint64_t)t->words)) return MCD_ERROR_MALFORMED;
+        for (bit = 0; bit < n; ++bit) {
+            if ((cell & 63u) == 0 && in_cell == 0 &&
+                mcd_read_bits(p + t->rank, (uint64_t)(cell >> RANK_SHIFT) * t->rank_bits, t->rank_bits) != k)
+                return MCD_ERROR_MALFORMED;
+            if ((bitmap_word(p, t, (uint32_t)(bit >> 6)) >> (bit & 63u)) & 1u) {
+                uint32_t f;
+                if (k >= t->keys || cell >= t->cells) return MCD_ERROR_MALFORMED;
+                f = key_frame(p, t, k, cell);
+                if (cell == 0 || cell == t->cells - 1u) {
+                    if (in_cell || f != cell_frame(t, cell)) return MCD_ERROR_MALFORMED;
+                } else if (f > t->frames - 2u) {
+                    return MCD_ERROR_MALFORMED;
+                }
+                if (k > 0 && f <= last_frame) return MCD_ERROR_MALFORMED;
+                last_frame = f;
+                k++;
+                in_cell++;
+            } else {
+                if (cell >= t->cells) return MCD_ERROR_MALFORMED;
+                cell++;
+                in_cell = 0;
             }
-            for (c = 0; c < t->dims; ++c) {
-                if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
-                if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
-            }
-            /* Frames increase from 0 to the last frame, which is the last key's. */
-            if (key == 0 ? cur.frame != 0 : (cur.frame <= last_frame || cur.frame > frames - 1u)) return MCD_ERROR_MALFORMED;
-            if (key == t->keys - 1u && cur.frame != frames - 1u) return MCD_ERROR_MALFORMED;
-            last_frame = cur.frame;
-            key++;
         }
-        bit = cur.exc;
+        if (k != t->keys || cell != t->cells) return MCD_ERROR_MALFORMED;
+        /* The last cell holds exactly the last key: "0 1 0" ends the bits (or "1 0" alone). */
+        if (t->cells > 1u && (!((bitmap_word(p, t, (uint32_t)((n - 2u) >> 6)) >> ((n - 2u) & 63u)) & 1u) ||
+                              ((bitmap_word(p, t, (uint32_t)((n - 3u) >> 6)) >> ((n - 3u) & 63u)) & 1u)))
+            return MCD_ERROR_MALFORMED;
+    }
+    if (!zero_bits(p + t->rank, (uint64_t)((t->cells + 63u) / 64u) * t->rank_bits,
+                   8u * packed_bytes((t->cells + 63u) / 64u, t->rank_bits)))
+        return MCD_ERROR_MALFORMED;
+    if (!zero_bits(p + t->table, (uint64_t)t->rows * t->row_bits, 8u * packed_bytes(t->rows, t->row_bits)))
+        return MCD_ERROR_MALFORMED;
+    if (t->in_cell_bits &&
+        !zero_bits(p + t->places, (uint64_t)t->keys * t->in_cell_bits, 8u * packed_bytes(t->keys, t->in_cell_bits)))
+        return MCD_ERROR_MALFORMED;
+    /* Groups back to back from bit 0, each its records then its outliers; the last row
+     * (the last anchor) marks the end and has widths 0. */
+    for (e = 0; e < t->rows; ++e) {
+        group_load(p, t, e, &g);
+        if (g.bit != total) return MCD_ERROR_MALFORMED;
+        if (e + 1u == t->rows) {
+            if (g.rec_bits) return MCD_ERROR_MALFORMED;
+            break;
+        }
+        bits = (uint64_t)(g.span - 1u) * g.rec_bits;
+        if (total + bits > data_bits) return MCD_ERROR_MALFORMED;
+        for (j = 1; j < g.span; ++j)
+            for (c = 0; c < t->dims; ++c)
+                if (g.width[c] && mcd_read_bits(p + t->data, total + (uint64_t)(j - 1u) * g.rec_bits + g.shift[c], g.width[c]) ==
+                                      (uint32_t)1 << (g.width[c] - 1u))
+                    bits += t->abits[c];
+        total += bits;
+        if (total > data_bits) return MCD_ERROR_MALFORMED;
     }
     /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
-    if (t->data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
-    for (; bit < data_bits; ++bit)
-        if (mcd_read_bits(p + t->data, bit, 1)) return MCD_ERROR_MALFORMED;
-    /* The seek table names, for every 2^s-th frame, the last group starting at or before it. */
-    for (j = 0, g = 0; j < t->seeks; ++j) {
-        uint32_t f = j << t->seek_shift;
-        while (g + 1u < t->groups && group_frame(p, t, g + 1u) <= f) ++g;
-        if (mcd_read_bits(p + t->seek, (uint64_t)j * t->group_bits, t->group_bits) != g) return MCD_ERROR_MALFORMED;
+    if (t->data_bytes != mcd_align4((size_t)((total + 7u) / 8u))) return MCD_ERROR_MALFORMED;
+    if (!zero_bits(p + t->data, total, data_bits)) return MCD_ERROR_MALFORMED;
+    /* Every key's value within range. */
+    g.row = UINT32_MAX;
+    for (b = 0; b < t->keys; ++b) {
+        int32_t q[4];
+        int64_t raw;
+        key_value(p, t, &g, b, q);
+        for (c = 0; c < t->dims; ++c) {
+            raw = q[c];
+            if (raw >= MAX_Q || raw <= -MAX_Q) return MCD_ERROR_MALFORMED;
+            if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
+        }
     }
     return MCD_OK;
 }
@@ -595,7 +721,7 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
         r = track_geometry(H.descs + off, H.frames, at, H.size, &t);
         if (r != MCD_OK) return r;
         if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
-        r = check_track(p, &t, H.frames);
+        r = check_track(p, &t);
         if (r != MCD_OK) return r;
         at = t.end;
         off += desc_size(t.kind);

@@ -12,7 +12,12 @@ is the :class:`~mocodec.tolerance.Tolerance`; every other setting has a default)
   section that starts with ``prefix``).
 
 A codec that cannot meet the tolerance raises :class:`~mocodec.tolerance.ToleranceNotMet`.
-Adding a codec is one row in :data:`CODECS` (and one in the runtime's table).
+Only codecs whose row says ``scale`` store scale tracks; :meth:`Codec.encode` refuses a clip
+that animates scale for the others (:class:`UnsupportedMotion`, naming the codec, the clip and
+the node), and hands them clips whose scales are the rest scales where the source's scale
+only differs from its rest by float noise (at most :data:`SCALE_NOISE`; the error is still
+measured against the source). Adding a codec is one row in :data:`CODECS` (and one in the
+runtime's table).
 
 >>> get("rma").section_kind, get("neural").section_version
 (b'RMAL', 2)
@@ -35,6 +40,36 @@ CheckFn = Callable[..., np.ndarray]
 decoded by the C runtime (:func:`mocodec.encode.make_check`)."""
 
 ProgressFn = Callable[[str], None]
+
+DEFAULT_CODEC = "rma"
+"""The codec of ``mocodec encode``, :func:`mocodec.encode.encode_motions` and
+:func:`mocodec.encode` alike: the smallest that meets the tolerance, and the one that stores
+animated scale."""
+
+RESEARCH_PACKAGES = ("sklearn", "pywt")
+"""Imports of the research extra (``mocodec[research]``), needed by rma-pca and bench/ only."""
+
+SCALE_NOISE = 1e-4
+"""Relative difference from the rest scale below which a scale is not animated."""
+
+
+class UnsupportedMotion(ValueError):
+    """A clip holds something the chosen codec cannot store (animated scale)."""
+
+
+def scale_deviation(motion: Motion) -> tuple[float, int]:
+    """(largest relative difference of any scale from its node's rest scale, that node)."""
+    rest = motion.skeleton.rest_scales[None]
+    dev = np.abs(motion.scales - rest) / np.maximum(np.abs(rest), 1e-12)
+    per_node = dev.max(axis=(0, 2)) if dev.size else np.zeros(motion.skeleton.node_count)
+    node = int(np.argmax(per_node))
+    return float(per_node[node]), node
+
+
+def without_scale(motion: Motion) -> Motion:
+    """``motion`` with every scale at its rest value (for codecs without scale tracks)."""
+    rest = np.broadcast_to(motion.skeleton.rest_scales, motion.scales.shape).copy()
+    return dataclasses.replace(motion, scales=rest)
 
 
 @dataclass
@@ -93,6 +128,8 @@ class Codec:
         codes the library.
     summary : str
         One line for ``--help``.
+    scale : bool
+        Whether its payload stores scale tracks (animated scale).
     """
 
     name: str
@@ -103,10 +140,17 @@ class Codec:
     settings_name: str
     per_clip: bool
     summary: str
+    scale: bool = False
 
     @property
     def implementation(self) -> ModuleType:
-        return importlib.import_module(f"{__name__}.{self.module}")
+        try:
+            return importlib.import_module(f"{__name__}.{self.module}")
+        except ModuleNotFoundError as exc:
+            if exc.name in RESEARCH_PACKAGES:
+                raise ImportError(f"codec {self.name!r} needs {exc.name}, an optional dependency: "
+                                  "pip install 'mocodec[research]'") from None
+            raise
 
     @property
     def settings_type(self) -> type:
@@ -127,12 +171,27 @@ class Codec:
     def encode(self, motions: list[Motion], cm_per_unit: list[float], tolerance: Tolerance,
                check: CheckFn, options: dict[str, Any] | None = None,
                progress: ProgressFn | None = None) -> CodecOutput:
-        """Encode ``motions`` (one clip each) into this codec's payloads."""
+        """Encode ``motions`` (one clip each) into this codec's payloads; a codec without
+        scale tracks raises :class:`UnsupportedMotion` for a clip that animates scale."""
         settings = self.settings(tolerance, **(options or {}))
+        if not self.scale:
+            motions = [self._scale_free(m) for m in motions]
         if not self.per_clip:
             return self.implementation.encode(motions, cm_per_unit, settings, check, progress)
         return encode_each_clip(self.implementation.encode_clip, motions, cm_per_unit, settings,
                                 check, progress)
+
+
+    def _scale_free(self, motion: Motion) -> Motion:
+        dev, node = scale_deviation(motion)
+        if dev <= SCALE_NOISE:
+            return without_scale(motion) if dev > 0 else motion
+        frame = int(np.argmax(np.abs(motion.scales[:, node] - motion.skeleton.rest_scales[node]).max(axis=1)))
+        raise UnsupportedMotion(
+            f"codec {self.name!r} cannot store animated scale: clip {motion.name!r}, node "
+            f"{motion.skeleton.names[node]!r} scales to {np.round(motion.scales[frame, node], 4).tolist()} "
+            f"on frame {frame} (rest {np.round(motion.skeleton.rest_scales[node], 4).tolist()}); "
+            f"codec 'rma' stores scale tracks")
 
 
 def encode_each_clip(encode_clip: Callable[..., ClipResult], motions: list[Motion],
@@ -154,7 +213,8 @@ CODECS: tuple[Codec, ...] = (
     Codec("spline", 1, b"SPLN", 1, "spline", "SplineSettings", True,
           "per-joint Catmull-Rom keys on a block grid; samples in place, no resident memory"),
     Codec("rma", 2, b"RMAL", 2, "rma", "RMASettings", False,
-          "seed 003: keys placed freely in time, lattice quantization, sampled in place, one section"),
+          "seed 003: keys placed freely in time, lattice quantization, sampled in place, one section",
+          scale=True),
     Codec("rma-pca", 6, b"RMAP", 2, "rma_pca", "RmaPcaSettings", False,
           "seed 003's PCA of virtual markers per behaviour group (--pca-variance; no error bound)"),
     Codec("neural", 5, b"NEUR", 2, "neural", "NeuralSettings", True,

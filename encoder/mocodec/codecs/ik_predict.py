@@ -194,11 +194,14 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
     f, n = motion.frame_count, sk.node_count
     rot, tr = motion.rotations, motion.translations
     rot_mode = np.zeros(n, dtype=np.int64)
+    animated = motion.animated()
     for i in range(n):
-        if not sk.rotation_order(i):
-            continue
+        if not animated[i, 0]:
+            continue  # mode 0: the rest rotation (identity for BVH) on every frame
         if np.all(rot[:, i] == rot[0, i]):
-            rot_mode[i] = ROT_IDENTITY if np.array_equal(rot[0, i], [0.0, 0.0, 0.0, 1.0]) else ROT_CONSTANT
+            rest = sk.rest_rotations[i]
+            at_rest = np.array_equal(rot[0, i], rest) or np.array_equal(rot[0, i], -rest)
+            rot_mode[i] = ROT_IDENTITY if at_rest else ROT_CONSTANT
         else:
             rot_mode[i] = ROT_CODED
     trans_mode = np.where(np.all(tr == sk.offsets[None], axis=(0, 2)), TRANS_REST, TRANS_CODED)
@@ -214,7 +217,7 @@ def analyse(motion: Motion, cm_per_unit: float, settings: IkPredictSettings) -> 
         if direct:
             primary[i] = direct[0]
 
-    world_rot, world_pos = forward_kinematics(sk, rot, tr)
+    world_rot, world_pos = forward_kinematics(sk, rot, tr, motion.scales)
     joints = np.flatnonzero(coded)
     w = world_rot[:, joints]
     d = quat_rotate(w, np.broadcast_to(u[joints], w.shape[:-1] + (3,)))
@@ -286,7 +289,7 @@ def _interpolation_ok(motion: Motion, world_pos: np.ndarray, tol_units: np.ndarr
         t = r / gap
         q = a_rot + (b_rot - a_rot) * t
         q /= np.linalg.norm(q, axis=-1, keepdims=True)
-        _, pos = forward_kinematics(sk, q, a_tr + (b_tr - a_tr) * t)
+        _, pos = forward_kinematics(sk, q, a_tr + (b_tr - a_tr) * t, sk.rest_scales[None])
         err = np.linalg.norm(pos - world_pos[starts + r], axis=-1)
         ok &= np.all(err <= tol_units[None, :], axis=1)
     return ok

@@ -189,18 +189,19 @@ def pose_layout(motion: Motion) -> PoseLayout:
     """Seed 001 §3 parameters of ``motion`` with their weights."""
     sk = motion.skeleton
     frames = motion.frame_count
-    pos = forward_kinematics(sk, motion.rotations, motion.translations)[1]
+    pos = forward_kinematics(sk, motion.rotations, motion.translations, motion.scales)[1]
     lever = lever_arms(sk, pos)
     floor = max(1e-3 * float(lever.max()), 1e-6)  # a leaf joint still needs a nonzero weight
     entries = np.zeros((sk.node_count, 4), dtype=np.int64)
-    entries[:, 0], entries[:, 1] = ROT_IDENTITY, TRANS_REST  # until a channel says otherwise
+    entries[:, 0], entries[:, 1] = ROT_IDENTITY, TRANS_REST  # the rest pose, until the clip moves it
+    animated = motion.animated()
     ref_index = np.zeros(sk.node_count, dtype=np.int64)
     refs: list[np.ndarray] = []
     cols: list[np.ndarray] = []
     weights: list[float] = []
     m = 0
     for i in range(sk.node_count):
-        if sk.rotation_order(i):
+        if animated[i, 0]:
             q = R.quat_make_continuous(motion.rotations[:, i])
             w = max(float(lever[i]), floor)
             if np.max(R.quat_angle(q[:1], q)) < 1e-9:
@@ -226,7 +227,7 @@ def pose_layout(motion: Motion) -> PoseLayout:
                 cols.append(continuous_rotation_vectors(rel))
                 weights += [w] * 3
                 m += 3
-        if sk.position_axes(i):
+        if animated[i, 1]:
             entries[i, 1], entries[i, 3] = TRANS_OUTPUT, m
             cols.append(motion.translations[:, i])
             weights += [1.0] * 3
@@ -239,8 +240,8 @@ def local_pose(layout: PoseLayout, motion: Motion, y: np.ndarray) -> tuple[np.nd
     """Local rotations (F, N, 4) and translations (F, N, 3) of parameters ``y`` (F, M)."""
     sk = motion.skeleton
     f = y.shape[0]
-    rot = np.zeros((f, sk.node_count, 4))
-    rot[..., 3] = 1.0
+    # Rotation mode 0 is the rest rotation (identity for BVH), as the runtime reads it.
+    rot = np.broadcast_to(_f32(sk.rest_rotations), (f, sk.node_count, 4)).copy()
     trans = np.broadcast_to(_f32(sk.offsets), (f, sk.node_count, 3)).copy()
     for i, (rm, tm, ro, to) in enumerate(layout.entries):
         if rm == ROT_CONSTANT:
@@ -420,9 +421,11 @@ def quantize(p: dict[str, np.ndarray], bits: int) -> QuantizedNetwork:
     steps, codes = [], {}
     for k in TENSORS:
         peak = float(np.max(np.abs(p[k]))) if p[k].size else 0.0
-        if peak * (1 << (bits - 1)) / max(half, 1) > MAX_WEIGHT:
+        # A tensor of zeros still needs a step the format accepts (any positive one).
+        step = float(np.float32(peak / half)) if peak > 0 else 1.0 / (1 << (bits - 1))
+        # The runtime's own check, in binary32: |code| <= 2^(bits-1) stays within MAX_WEIGHT.
+        if np.float32(step) * np.float32(1 << (bits - 1)) > np.float32(MAX_WEIGHT):
             raise ToleranceNotMet(f"weight magnitude {peak:.3g} exceeds the format's bound")
-        step = float(np.float32(peak / half)) if peak > 0 else 1.0
         steps.append(step)
         codes[k] = np.clip(np.rint(p[k] / step), -half, half).astype(np.int64)
     return QuantizedNetwork(bits, np.array(steps), codes)
@@ -622,11 +625,11 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
     frames = motion.frame_count
     scale, offset = _normalisation(layout)
     z = (layout.targets - offset) / scale
-    world = forward_kinematics(sk, motion.rotations, motion.translations)[1]
+    world = forward_kinematics(sk, motion.rotations, motion.translations, motion.scales)[1]
 
     def window_error(s: int, y: np.ndarray) -> np.ndarray:
         rot, trans = local_pose(layout, motion, y)
-        return np.linalg.norm(forward_kinematics(sk, rot, trans)[1] - world[s:s + len(y)], axis=-1)
+        return np.linalg.norm(forward_kinematics(sk, rot, trans, sk.rest_scales[None])[1] - world[s:s + len(y)], axis=-1)
 
     half_world, half_step, half_turn = halfway_world(motion)
     held = (half_step * cm_per_unit <= settings.jump_cm) & (half_turn <= GLITCH_TURN_DEG)
@@ -634,7 +637,7 @@ def encode_clip(motion: Motion, cm_per_unit: float, settings: NeuralSettings,
     def halfway_error(s: int, y: np.ndarray) -> np.ndarray:
         """Error at s + 0.5 ... of parameters ``y`` there; 0 on intervals the guard skips."""
         rot, trans = local_pose(layout, motion, y)
-        err = np.linalg.norm(forward_kinematics(sk, rot, trans)[1] - half_world[s:s + len(y)], axis=-1)
+        err = np.linalg.norm(forward_kinematics(sk, rot, trans, sk.rest_scales[None])[1] - half_world[s:s + len(y)], axis=-1)
         return np.where(held[s:s + len(y), None], err, 0.0)
 
     history: list[dict[str, float]] = []

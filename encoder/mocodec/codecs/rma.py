@@ -4,10 +4,9 @@
 
 It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
 top-down fitting, per-track budgets, repair through the C runtime), and differs in storage
-(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are gaps in the
-records; key values are grouped residuals from a prediction at per-group widths, with
-outliers whole, so a random access decodes a group's records per track and sequential playback
-one record per key interval.
+(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are bits of a
+cell bitmap; key values are residuals from a chord between group anchors at per-group widths,
+with outliers whole, so any key is a few direct reads, at random as in sequence.
 
 The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
 is codec ``rma-pca`` (``--pca-variance``, :mod:`.rma_pca`); this one does not use it because
@@ -41,14 +40,14 @@ class RMASettings(KeyframeSettings):
     Parameters
     ----------
     key_grid : int or None, default None
-        Key cells of this many frames, keys kept to one a cell where they can (a key time then
-        costs about a bit of the cell mask; a second key in a cell a list entry); 1 ... 8.
-        None: 4 when every node's tolerance is at least 0.25 cm, else 1 (dense keys).
-    group_shifts : tuple of int, default (4, 5)
+        Keys only on the first frames of cells of this many frames (1, 2, 4 or 8), where a key
+        time costs a bit of the track's cell bitmap; a track that needs a key elsewhere goes on
+        in cells of half the size. None: 4 when every node's tolerance is at least 0.25 cm,
+        else 1 (dense keys).
+    group_shifts : tuple of int, default (3, 4, 5)
         Each track's keys come in groups of ``2**s`` keys, s the one of these that takes the
-        fewest bytes (docs/FORMAT.md, RMAL): a group costs an entry (offset, first key whole,
-        widths), and a random access decodes up to a group's records. Larger groups: fewer
-        entries, a longer walk.
+        fewest bytes (docs/FORMAT.md, RMAL): a group costs a row (offset, widths, its first
+        key whole), and its other keys are residuals from the chord between two rows' keys.
     """
 
     key_grid: int | None = None
@@ -62,8 +61,8 @@ class RMASettings(KeyframeSettings):
                 tightest = min(tightest, self.tolerance.effector_tolerance_cm)
             self.key_grid = 4 if tightest >= 0.25 else 1
         self.key_grid = int(self.key_grid)
-        if not 1 <= self.key_grid <= 8:
-            raise ValueError(f"key_grid must be 1 ... 8, got {self.key_grid}")
+        if self.key_grid not in (1, 2, 4, 8):
+            raise ValueError(f"key_grid must be 1, 2, 4 or 8, got {self.key_grid}")
         if isinstance(self.group_shifts, (int, str)):
             self.group_shifts = (int(self.group_shifts),)
         self.group_shifts = tuple(int(g) for g in self.group_shifts)
@@ -90,7 +89,7 @@ def curve_track(t: Track) -> CurveTrack:
 def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
     """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
     rows, constants, animated = node_modes(motion, tracks)
-    modes = [(rm, tm, 0) for rm, tm, _, _ in rows]
+    modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
     return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts)
 
 
@@ -102,7 +101,7 @@ def frame0_jumps(motion: Motion, cm_per_unit: float) -> bool:
     files start with a T-pose the converter added): the curves then detach frame 0."""
     if motion.frame_count < 3:
         return False
-    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2])
+    _, pos = forward_kinematics(motion.skeleton, motion.rotations[:2], motion.translations[:2], motion.scales[:2])
     return bool(np.max(np.linalg.norm(pos[1] - pos[0], axis=-1)) * cm_per_unit > JUMP_CM)
 
 

@@ -1,12 +1,19 @@
 """The ``RMAL`` version 2 payload (docs/FORMAT.md): what the runtime samples in place.
 
-A track's keys come in groups of ``2**group_shift`` (16 or 32, per track). A fixed-size group
-entry holds the bit offset of the group's records, its first key whole (frame and value) and the
-widths of the records' fields; each further key is one record: its gap to the key before and,
-per component, its residual from a prediction (the key before, or its slope), at the group's
-widths, or an escape code whose value follows the records whole (a patched frame-of-reference
-code, widths chosen per group and field for the fewest bits, the predictor per track). A seek
-table names the group of every ``2**seek_shift``-th frame.
+Every part of a track is laid out for direct reads, so that any key costs a few reads wherever
+it lies:
+
+- key times are cells of ``2**cell_shift`` frames (frame 0 and the last frame are cells of
+  their own) written in unary, a one per key and a zero closing each cell, with a rank table
+  (the keys before every 64th cell) and, unless every key is on its cell's first frame, each
+  key's place in its cell: the key at or before a frame is a rank entry and a popcount or two
+  away, its neighbours the next ones;
+- key values come in groups of ``2**group_shift`` keys (8, 16 or 32, per track): a group's
+  entry holds its first key whole (its anchor), the bit offset of its records and their widths;
+  every other key is one record, its residual per component from the chord between its
+  group's anchor and the next one, at the group's width, or an escape code whose value follows
+  the group's records whole (a patched frame-of-reference code, widths chosen per group and
+  component for the fewest bits).
 """
 from __future__ import annotations
 
@@ -24,7 +31,12 @@ MAX_Q = 1 << 30
 KIND_MRP, KIND_TWIST, KIND_TRANSLATION, KIND_SCALE = 1, 2, 3, 4
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 DESC_SIZE = {KIND_MRP: 28, KIND_TWIST: 40, KIND_TRANSLATION: 20, KIND_SCALE: 20}
-GROUP_SHIFTS = (4, 5)  # the group sizes the writer tries per track (16 and 32 keys), smallest bytes wins
+GROUP_SHIFTS = (3, 4, 5)  # the group sizes the writer tries per track (8, 16, 32 keys), smallest bytes wins
+MAX_CELL_SHIFT = 3  # key cells of up to 8 frames
+RANK_CELLS = 64  # a rank entry every 64 cells
+# An escaped residual costs the decoder a walk over the group's records before it: the widths
+# are chosen as if each escape cost this many bits more.
+ESCAPE_PENALTY_BITS = 8
 
 
 @dataclass
@@ -80,17 +92,35 @@ def bits_for(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def _residuals(q: np.ndarray, group_shift: int, predictor: int) -> np.ndarray:
-    """Residuals (K, d) of every key from its group's prediction (rows of group anchors: 0)."""
+def cell_count(frame_count: int, cell_shift: int) -> int:
+    """Cells of a clip: frame 0, the cells of frames 1 ... F - 2, the last frame."""
+    if frame_count == 1:
+        return 1
+    return ((frame_count - 2 + (1 << cell_shift) - 1) >> cell_shift) + 2
+
+
+def key_cells(frames: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
+    """The cell of every key frame."""
+    f = np.asarray(frames, dtype=np.int64)
+    cells = np.where(f > 0, ((f - 1) >> cell_shift) + 1, 0)
+    if frame_count > 1:
+        cells[f == frame_count - 1] = cell_count(frame_count, cell_shift) - 1
+    return cells
+
+
+def chord_residuals(q: np.ndarray, group_shift: int) -> tuple[np.ndarray, np.ndarray]:
+    """(record keys, their residuals (R, d)) from the chord between each group's anchor (key
+    ``e * G``) and the next (key ``min((e + 1) * G, K - 1)``)."""
     K = len(q)
-    pos = np.arange(K) & ((1 << group_shift) - 1)
-    prev = np.vstack((q[:1], q[:-1]))
-    prev2 = np.vstack((q[:1], q[:1], q[:-2]))[:K]
-    slope = prev - prev2
-    slope[pos == 1] = 0  # the second key of a group is predicted by the first alone
-    r = q - (prev + (slope * predictor + 1) // 2)
-    r[pos == 0] = 0
-    return r
+    G = 1 << group_shift
+    idx = np.arange(K)
+    rec = idx[(idx & (G - 1) > 0) & (idx < K - 1)]
+    first = rec >> group_shift << group_shift
+    nxt = np.minimum(first + G, K - 1)
+    span = (nxt - first)[:, None]
+    a0, a1 = q[first], q[nxt]
+    pred = a0 + ((a1 - a0) * (rec - first)[:, None]) // span  # floor division, as the runtime's
+    return rec, q[rec] - pred
 
 
 def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -> tuple[np.ndarray, int]:
@@ -101,30 +131,39 @@ def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -
     np.add.at(hist, (grp, np.minimum(need, 32)), 1)
     over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w]: records needing more than w
     w = np.arange(MAX_WIDTH + 1)
-    cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * outlier_bits
+    cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * (outlier_bits + ESCAPE_PENALTY_BITS)
     cost[:, 0] = np.where(over[:, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
     best = np.argmin(cost, axis=1)
-    return best, int(cost[np.arange(groups), best].sum())
+    return best, int((counts * best + over[np.arange(groups), best] * outlier_bits).sum())
 
 
-def _group_plan(r: np.ndarray, gaps: np.ndarray, group_shift: int, abits: np.ndarray,
-                frame_bits: int) -> tuple[np.ndarray, int]:
-    """Per group the widths of the gap and of each component, and the total record bits."""
-    K, d = r.shape
-    groups = (K - 1 >> group_shift) + 1
-    body = (np.arange(K) & ((1 << group_shift) - 1)) > 0
-    grp = (np.arange(K) >> group_shift)[body]
-    widths = np.zeros((groups, d + 1), dtype=np.int64)
-    # A gap escapes when it needs the all-ones code or more; a residual when it is outside
-    # [-(2^(w-1) - 1), 2^(w-1) - 1].
-    g = gaps[body]
-    widths[:, 0], total = _widths(np.where(g == 0, 0, _bit_length(g + 1)), grp, groups, frame_bits)
-    mag = np.abs(r[body])
-    for c in range(d):
-        widths[:, c + 1], bits = _widths(np.where(mag[:, c] == 0, 0, _bit_length(mag[:, c]) + 1), grp, groups,
-                                         int(abits[c]))
-        total += bits
-    return widths, total
+def _key_times(frames: np.ndarray, frame_count: int, cell_shift: int) -> tuple[int, int, bytes]:
+    """(cell shift, bits of each key's place in its cell (0 when every key is on its cell's
+    first frame), bytes): the unary cells (key k's one at bit cell_k + k, each cell closed by
+    a zero; 64-bit little-endian words), the rank table (keys in the cells below every 64th)
+    and the places."""
+    f = np.asarray(frames, dtype=np.int64)
+    K = len(f)
+    cells = cell_count(frame_count, cell_shift)
+    words = (K + cells + 63) // 64
+    where = key_cells(f, frame_count, cell_shift)
+    unary = np.zeros(words * 64, dtype=np.uint8)
+    unary[where + np.arange(K)] = 1
+    per_cell = np.bincount(where, minlength=cells)
+    rank = np.concatenate(([0], np.cumsum(per_cell)))[np.arange((cells + 63) // 64) * RANK_CELLS]
+    out = np.packbits(unary, bitorder="little").tobytes() + fields_bytes(rank, bits_for(K))
+    places = f - cell_starts(where, frame_count, cell_shift)
+    in_cell = cell_shift if np.any(places) else 0
+    if in_cell:
+        out += fields_bytes(places, in_cell)
+    return cell_shift, in_cell, out
+
+
+def cell_starts(cells: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
+    """The first frame of each cell."""
+    c = np.asarray(cells, dtype=np.int64)
+    last = cell_count(frame_count, cell_shift) - 1
+    return np.where(c == 0, 0, np.where(c == last, frame_count - 1, 1 + (c - 1 << cell_shift)))
 
 
 def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple[bytes, bytes]:
@@ -146,67 +185,47 @@ def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[
         raise ValueError("key frames must increase from 0 to the last frame")
     if K == 1 and frame_count != 1:
         raise ValueError("a track of a clip of several frames has at least two keys")
-    G = 1 << group_shift
-    groups = (K - 1) // G + 1
-    abits = signed_bits(q)
-    frame_bits = bits_for(frame_count - 1)
-    gaps = np.concatenate(([0], np.diff(frames) - 1))
-    best = None
-    for predictor in (0, 1, 2):
-        r = _residuals(q, group_shift, predictor)
-        widths, bits = _group_plan(r, gaps, group_shift, abits, frame_bits)
-        if best is None or bits < best[0]:
-            best = (bits, predictor, r, widths)
-    _, predictor, r, widths = best
-    pos = np.arange(K) & (G - 1)
-    grp = np.arange(K) >> group_shift
-    rec = np.flatnonzero(pos > 0)
-    w_rec = widths[grp[rec]]  # (R, d + 1): gap, components
-    # Fields of each record (gap, then components) and which of them escape.
-    raw = np.concatenate((gaps[rec][:, None], r[rec]), axis=1)
-    whole = np.concatenate((frames[rec][:, None], q[rec]), axis=1)
-    whole_bits = np.concatenate(([frame_bits], abits))
-    escaped = np.zeros(raw.shape, dtype=bool)
-    field_vals = np.zeros(raw.shape, dtype=np.int64)
     one = np.int64(1)
-    wg = w_rec[:, 0]
-    escaped[:, 0] = (wg > 0) & (raw[:, 0] >= (one << wg) - 1)
-    field_vals[:, 0] = np.where(escaped[:, 0], (one << wg) - 1, raw[:, 0])
-    for c in range(1, d + 1):
-        w = w_rec[:, c]
-        lim = np.where(w > 0, (one << np.maximum(w - 1, 0)) - 1, 0)
-        escaped[:, c] = (np.abs(raw[:, c]) > lim) & (w > 0)
-        field_vals[:, c] = np.where(escaped[:, c], one << np.maximum(w - 1, 0), raw[:, c] % (one << w))
-    rec_bits = w_rec.sum(axis=1)
-    exc_rows, exc_field = np.nonzero(escaped)
-    exc_wids = whole_bits[exc_field]
-    exc_vals = whole[exc_rows, exc_field] & ((one << exc_wids) - 1)
-    group_bits = np.bincount(grp[rec], weights=rec_bits, minlength=groups).astype(np.int64)
-    group_bits += np.bincount(grp[rec[exc_rows]], weights=exc_wids, minlength=groups).astype(np.int64)
-    starts = np.concatenate(([0], np.cumsum(group_bits)[:-1]))
-    # Order fields: by group, records before outliers, in record order, then field.
-    f_group = np.concatenate((np.repeat(grp[rec], d + 1), grp[rec[exc_rows]]))
-    f_part = np.concatenate((np.zeros(len(rec) * (d + 1), dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
-    f_order = np.concatenate((np.arange(len(rec) * (d + 1)), np.arange(len(exc_rows))))
+    abits = signed_bits(q)
+    # Key times: of the cell sizes, the one with the fewest bytes.
+    cell_shift, in_cell, times = min((_key_times(frames, frame_count, cs) for cs in range(MAX_CELL_SHIFT + 1)),
+                                     key=lambda o: len(o[2]))
+    # Key values: anchors whole in the group table, the others residuals from the chord.
+    G = 1 << group_shift
+    rows = (K - 1 + G - 1) // G + 1
+    groups = rows - 1
+    rec, r = chord_residuals(q, group_shift)
+    grp = rec >> group_shift
+    widths = np.zeros((rows, d), dtype=np.int64)
+    mag = np.abs(r)
+    for c in range(d if groups else 0):
+        widths[:groups, c], _ = _widths(np.where(mag[:, c] == 0, 0, _bit_length(mag[:, c]) + 1), grp, groups,
+                                        int(abits[c]))
+    w_rec = widths[grp]  # (R, d)
+    lim = np.where(w_rec > 0, (one << np.maximum(w_rec - 1, 0)) - 1, 0)
+    escaped = (mag > lim) & (w_rec > 0)
+    field_vals = np.where(escaped, one << np.maximum(w_rec - 1, 0), r % (one << w_rec))
+    exc_rows, exc_comp = np.nonzero(escaped)
+    exc_wids = abits[exc_comp]
+    exc_vals = q[rec[exc_rows], exc_comp] & ((one << exc_wids) - 1)
+    group_bits = np.bincount(grp, weights=w_rec.sum(axis=1), minlength=groups).astype(np.int64)
+    group_bits += np.bincount(grp[exc_rows], weights=exc_wids, minlength=groups).astype(np.int64)
+    starts = np.concatenate(([0], np.cumsum(group_bits)))  # rows entries: the last is the end
+    # Fields in order: by group, records before outliers, in record order, then component.
+    f_group = np.concatenate((np.repeat(grp, d), grp[exc_rows]))
+    f_part = np.concatenate((np.zeros(len(rec) * d, dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
+    f_order = np.concatenate((np.arange(len(rec) * d), np.arange(len(exc_rows))))
     order = np.lexsort((f_order, f_part, f_group))
     data = fields_bytes(np.concatenate((field_vals.ravel(), exc_vals))[order],
                         np.concatenate((w_rec.ravel(), exc_wids))[order])
-    # Group table: bit offset, first key's frame, widths, first key's value.
-    offset_bits = bits_for(int(starts.max()))
-    first = np.arange(groups) * G
-    e_vals = [starts[:, None], frames[first][:, None], widths, q[first] & ((one << abits) - 1)]
-    e_wids = [np.full((groups, 1), offset_bits), np.full((groups, 1), frame_bits),
-              np.full((groups, d + 1), WIDTH_BITS), np.broadcast_to(abits, (groups, d))]
+    offset_bits = bits_for(int(starts[-1]))
+    anchors = q[np.minimum(np.arange(rows) * G, K - 1)]
+    e_vals = [starts[:, None], widths, anchors & ((one << abits) - 1)]
+    e_wids = [np.full((rows, 1), offset_bits), np.full((rows, d), WIDTH_BITS), np.broadcast_to(abits, (rows, d))]
     table = fields_bytes(np.concatenate(e_vals, axis=1).ravel(), np.concatenate(e_wids, axis=1).ravel())
-    # Seek table: the group of every 2^s-th frame, s about two groups' span.
-    span = max(1.0, frame_count / groups)
-    seek_shift = min(24, max(0, int(np.floor(np.log2(2.0 * span)))))
-    seek_frames = np.arange(((frame_count - 1) >> seek_shift) + 1) << seek_shift
-    seek = np.searchsorted(frames[first], seek_frames, side="right") - 1
-    seek_bytes = fields_bytes(seek, bits_for(groups - 1))
-    body = seek_bytes + table + data
-    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | predictor << 1 | group_shift << 3, offset_bits,
-                       seek_shift, K, len(data), t.step)
+    body = times + table + data
+    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | cell_shift << 1 | group_shift << 3, offset_bits,
+                       in_cell, K, len(data), t.step)
     head += bytes([int(b) for b in abits] + [0] * (4 - d))
     if t.kind in (KIND_MRP, KIND_TWIST):
         head += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)

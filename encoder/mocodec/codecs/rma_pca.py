@@ -37,8 +37,7 @@ from ..rma import preprocess as PP
 from ..rma import repeats as RP
 from ..rma import segment as S
 from ..tolerance import Tolerance
-from . import CheckFn, CodecOutput, ProgressFn
-from . import rma
+from . import CheckFn, CodecOutput, ProgressFn, UnsupportedMotion, rma
 from .rma_reference import decode_payload
 
 SECTION_HEADER = 32
@@ -426,6 +425,13 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
     if len(set(cm_per_unit)) != 1:
         raise ValueError("rma-pca codes one library in one unit: the clips' units differ")
     cm = cm_per_unit[0]
+    for m in motions:  # its marker layout is read from BVH channels, which glTF nodes do not have
+        moved = m.animated()
+        for i in range(m.skeleton.node_count):
+            if (moved[i, 0] and not m.skeleton.rotation_order(i)) or (moved[i, 1] and not m.skeleton.position_axes(i)):
+                raise UnsupportedMotion(f"codec 'rma-pca' reads BVH channel layouts: clip {m.name!r}, node "
+                                        f"{m.skeleton.names[i]!r} moves without channels (a glTF clip); "
+                                        "use codec 'rma'")
     try:
         shared = PP.library_layout([m.skeleton for m in motions], cm)
     except ValueError as exc:

@@ -30,7 +30,8 @@ def _bits_for(n: int) -> int:
 
 def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     """The payload's header fields and, per track, its kind, key frames (K,), lattice
-    integers (K, d), steps (d,), reference and axis."""
+    integers (K, d), steps (d,), reference and axis, and where its parts start (``parts``:
+    byte offsets of the bitmap, rank table, group table and data area)."""
     size, frames, nodes, ntracks, nconst = struct.unpack_from("<IIIII", payload)
     pos = 32
     modes = list(payload[pos:pos + nodes])
@@ -39,7 +40,7 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     pos += 4 * nconst
     descs = []
     for _ in range(ntracks):
-        kind, flags, offset_bits, seek_shift, K, data_bytes, step = struct.unpack_from("<BBBBIIf", payload, pos)
+        kind, flags, offset_bits, in_cell_bits, K, data_bytes, step = struct.unpack_from("<BBBBIIf", payload, pos)
         d = _DIMS[kind]
         abits = list(payload[pos + 16:pos + 16 + d])
         steps = np.full(d, step, dtype=np.float32)
@@ -50,65 +51,73 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
             a = np.frombuffer(payload, "<i2", 3, pos + 28).astype(np.float64)
             axis = a / np.linalg.norm(a)
             steps[0] = struct.unpack_from("<f", payload, pos + 36)[0]
-        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), predictor=(flags >> 1) & 3,
-                          group_shift=(flags >> 3) & 7, offset_bits=offset_bits,
-                          seek_shift=seek_shift, K=K, data_bytes=data_bytes, steps=steps, abits=abits, ref=ref,
-                          axis=axis))
+        descs.append(dict(kind=kind, d=d, split=bool(flags & 1), cell_shift=(flags >> 1) & 3,
+                          group_shift=(flags >> 3) & 7, offset_bits=offset_bits, in_cell_bits=in_cell_bits, K=K,
+                          data_bytes=data_bytes,
+                          steps=steps, abits=abits, ref=ref, axis=axis))
         pos += _DESC_SIZE[kind]
     pos = (pos + 3) // 4 * 4
-    frame_bits = _bits_for(frames - 1)
     for t in descs:
-        d = t["d"]
-        G = 1 << t["group_shift"]
-        groups = (t["K"] - 1) // G + 1
-        seeks = ((frames - 1) >> t["seek_shift"]) + 1
-        table_at = pos + 4 * ((seeks * _bits_for(groups - 1) + 31) // 32)
-        entry = t["offset_bits"] + frame_bits + 4 * (d + 1) + sum(t["abits"])
-        data_at = table_at + 4 * ((groups * entry + 31) // 32)
-        pos = data_at + t["data_bytes"]
-        table = payload[table_at:data_at] + bytes(8)
-        data = payload[data_at:pos] + bytes(8)
-        q = np.zeros((t["K"], d), dtype=np.int64)
-        key_frames = np.zeros(t["K"], dtype=np.int64)
-        for g in range(groups):
-            bit = g * entry
-            rec = read_bits(table, bit, t["offset_bits"])
+        d, K, G = t["d"], t["K"], 1 << t["group_shift"]
+        # Key times: the unary cells, the rank table (not needed reading in order), the places.
+        C = 1 << t["cell_shift"]
+        inner = (frames - 2 + C - 1) // C if frames > 1 else -1
+        cells = inner + 2
+        words = (K + cells + 63) // 64
+        bits = np.unpackbits(np.frombuffer(payload, np.uint8, words * 8, pos), bitorder="little")
+        cell = np.flatnonzero(bits) - np.arange(K)  # key k's one is at bit cell_k + k
+        key_frames = np.where(cell == 0, 0, np.where(cell > inner, frames - 1, 1 + (cell - 1) * C))
+        parts = dict(bitmap=pos, rank=pos + words * 8)
+        pos += words * 8 + 4 * ((((cells + 63) // 64) * _bits_for(K) + 31) // 32)
+        parts["in_cell"] = pos
+        ib = t["in_cell_bits"]
+        if ib:
+            places = payload[pos:pos + 4 * ((K * ib + 31) // 32)] + bytes(8)
+            key_frames = key_frames + np.array([read_bits(places, k * ib, ib) for k in range(K)], dtype=np.int64)
+            pos += 4 * ((K * ib + 31) // 32)
+        # Key values: the group table (offset, widths, anchor per row), then the records.
+        rows = (K - 1 + G - 1) // G + 1
+        row_bits = t["offset_bits"] + 4 * d + sum(t["abits"])
+        table = payload[pos:pos + 4 * ((rows * row_bits + 31) // 32)] + bytes(8)
+        parts.update(table=pos, row_bits=row_bits, rows=rows)
+        pos += 4 * ((rows * row_bits + 31) // 32)
+        parts["data"] = pos
+        data = payload[pos:pos + t["data_bytes"]] + bytes(8)
+        pos += t["data_bytes"]
+        entry = []
+        for e in range(rows):
+            bit = e * row_bits
+            off = read_bits(table, bit, t["offset_bits"])
             bit += t["offset_bits"]
-            k0 = g * G
-            key_frames[k0] = read_bits(table, bit, frame_bits)
-            bit += frame_bits
-            w = [read_bits(table, bit + 4 * c, 4) for c in range(d + 1)]
-            bit += 4 * (d + 1)
+            w = [read_bits(table, bit + 4 * c, 4) for c in range(d)]
+            bit += 4 * d
+            a = []
             for c in range(d):
-                q[k0, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
+                a.append(_signed(read_bits(table, bit, t["abits"][c]), t["abits"][c]))
                 bit += t["abits"][c]
-            n = min(G, t["K"] - k0)
-            exc = rec + (n - 1) * sum(w)
-            for j in range(1, n):
-                k = k0 + j
-                gap = read_bits(data, rec, w[0])
-                rec += w[0]
-                if w[0] and gap == (1 << w[0]) - 1:
-                    key_frames[k] = read_bits(data, exc, frame_bits)
-                    exc += frame_bits
-                else:
-                    key_frames[k] = key_frames[k - 1] + gap + 1
+            entry.append((off, w, a))
+        q = np.zeros((K, d), dtype=np.int64)
+        for e in range(rows):
+            q[min(e * G, K - 1)] = entry[e][2]
+        for e in range(rows - 1):
+            bit, w, a0 = entry[e]
+            a1 = entry[e + 1][2]
+            span = min(G, K - 1 - e * G)
+            exc = bit + (span - 1) * sum(w)
+            for i in range(1, span):
                 for c in range(d):
-                    q1 = q[k - 1, c]
-                    q2 = q[k - 2, c] if j >= 2 else q1
-                    pred = q1 + ((q1 - q2) * t["predictor"] + 1) // 2
-                    wc = w[c + 1]
-                    if wc == 0:
-                        q[k, c] = pred
+                    pred = a0[c] + ((a1[c] - a0[c]) * i) // span
+                    if w[c] == 0:
+                        q[e * G + i, c] = pred
                         continue
-                    r = _signed(read_bits(data, rec, wc), wc)
-                    rec += wc
-                    if r == -(1 << (wc - 1)):
-                        q[k, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
+                    r = _signed(read_bits(data, bit, w[c]), w[c])
+                    bit += w[c]
+                    if r == -(1 << (w[c] - 1)):
+                        q[e * G + i, c] = _signed(read_bits(data, exc, t["abits"][c]), t["abits"][c])
                         exc += t["abits"][c]
                     else:
-                        q[k, c] = pred + r
-        t.update(frames=key_frames, q=q)
+                        q[e * G + i, c] = pred + r
+        t.update(frames=key_frames.astype(np.int64), q=q, parts=parts)
     header = dict(size=size, frames=frames, nodes=nodes, modes=modes, consts=consts)
     return header, descs
 

@@ -51,7 +51,9 @@ def serialize(motion: Motion, tracks: list[Track], shift: int) -> bytes:
     starts = _block_starts(frames, shift)
     nb = len(starts)
     rows, constants, animated = node_modes(motion, tracks)
-    node_rows = [struct.pack("<BBHHH", rm, tm, ri, ti, 0) for rm, tm, ri, ti in rows]
+    if any(row[2] for row in rows):  # the codec refuses animated scale before it fits
+        raise ValueError("the SPLN payload has no scale tracks")
+    node_rows = [struct.pack("<BBHHH", rm, tm, ri, ti, 0) for rm, tm, _, ri, ti, _ in rows]
 
     descs = []
     qvals = []

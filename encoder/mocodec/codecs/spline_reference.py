@@ -93,8 +93,7 @@ def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[n
         values.append(catmull_rom(np.asarray(key_frames[u]), v, x))
 
     n = len(x)
-    rot = np.zeros((n, nodes, 4))
-    rot[..., 3] = 1.0
+    rot = np.broadcast_to(skeleton.rest_rotations.astype(np.float32).astype(np.float64), (n, nodes, 4)).copy()
     trans = np.broadcast_to(skeleton.offsets.astype(np.float32).astype(np.float64), (n, nodes, 3)).copy()
     for i, (rm, tm, ri, ti, _) in enumerate(node_rows):
         if rm == 1:

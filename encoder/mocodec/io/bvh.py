@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton
+from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton, unique_name
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
 
@@ -59,7 +59,9 @@ def read_bvh(path: str | os.PathLike) -> Motion:
         data = path.read_bytes()
     except OSError as exc:
         raise BVHError(f"cannot read: {exc.strerror or exc}", str(path)) from exc
-    return parse_bvh(data, path=str(path), name=path.stem)
+    motion = parse_bvh(data, path=str(path), name=path.stem)
+    motion.source = {"format": "bvh", "file": str(path)}
+    return motion
 
 
 def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = None) -> Motion:
@@ -347,13 +349,7 @@ def _end_site_names(nodes: list[_Node]) -> list[str]:
     names = []
     for n in nodes:
         if n.end_site:
-            base = f"{nodes[n.parent].name}_End"
-            name, k = base, 1
-            while name in used:
-                k += 1
-                name = f"{base}{k}"
-            used.add(name)
-            names.append(name)
+            names.append(unique_name(f"{nodes[n.parent].name}_End", used, sep=""))
         else:
             names.append(n.name)
     return names
