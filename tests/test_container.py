@@ -52,28 +52,28 @@ def _section(data: bytes, kind: bytes, nth: int = 0) -> tuple[int, int, int]:
 
 
 def test_skel_version_2_records(sample_paths):
-    """SKEL v2: node count, reserved 0, cm per unit, string block at 16 + 56 N; per node parent,
-    name offset, rest translation (+8), rotation (+20), scale (+36), kind (+48), channel count
-    and codes padded with 0xFF."""
+    """SKEL v2: node count, flags 0 (a BVH skeleton has no rest table), cm per unit, string
+    block at 16 + 32 N; per node parent, name offset, rest translation (+8), kind (+20),
+    channel count and codes padded with 0xFF, reserved 0."""
     motions, data = _asset(sample_paths)
     for s, m in enumerate(motions):
         sk = m.skeleton
         _, off, size = _section(data, b"SKEL", s)
-        n, reserved, cm, strings = struct.unpack_from("<IIfI", data, off)
-        assert (n, reserved, strings) == (sk.node_count, 0, 16 + 56 * sk.node_count)
+        n, flags, cm, strings = struct.unpack_from("<IIfI", data, off)
+        assert (n, flags, strings) == (sk.node_count, 0, 16 + 32 * sk.node_count)
         assert cm == pytest.approx(5.6444, rel=1e-6)
         block = data[off + strings:off + size]
         for i in range(n):
-            rec = struct.unpack_from("<iI3f4f3fBB6B", data, off + 16 + 56 * i)
-            parent, name_at, t, r, sc = rec[0], rec[1], rec[2:5], rec[5:9], rec[9:12]
-            kind, channels, codes = rec[12], rec[13], rec[14:20]
+            rec = struct.unpack_from("<iI3fBB6BI", data, off + 16 + 32 * i)
+            parent, name_at, t = rec[0], rec[1], rec[2:5]
+            kind, channels, codes, reserved = rec[5], rec[6], rec[7:13], rec[13]
             assert parent == sk.parents[i]
             assert block[name_at:block.index(b"\0", name_at)].decode() == sk.names[i]
             assert np.allclose(t, sk.offsets[i], atol=1e-5)
-            assert r == (0.0, 0.0, 0.0, 1.0) and sc == (1.0, 1.0, 1.0)  # BVH: no rest rotation or scale
             assert kind == (1 if sk.is_end_site[i] else 0)
             assert channels == len(sk.channels[i])
             assert codes == tuple(sk.channels[i]) + (0xFF,) * (6 - channels)
+            assert reserved == 0
 
 
 def test_clip_version_2_records(sample_paths):

@@ -20,6 +20,7 @@ version = _rt.version
 clip_scratch_size = _rt.clip_scratch_size
 TRANSFORM_FLOATS = _rt.TRANSFORM_FLOATS  # floats per mcd_transform: rotation, translation, scale
 SAMPLE_WORLD, SAMPLE_LOOP, SAMPLE_NEAREST = _rt.SAMPLE_WORLD, _rt.SAMPLE_LOOP, _rt.SAMPLE_NEAREST
+NODE_VIRTUAL = _rt.NODE_VIRTUAL  # a point the reader added at a leaf joint (mcd_node_info.kind)
 
 
 def decode_world(asset: "Asset", clip: int | str) -> tuple[np.ndarray, np.ndarray]:

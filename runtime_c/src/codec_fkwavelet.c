@@ -1,16 +1,19 @@
 /* Codec `fk-wavelet`: per-channel CDF 9/7 wavelet coefficients, quantized with per-joint step
- * sizes and entropy coded band by band, coarse to fine (seed 000 §4; docs/FORMAT.md, FKWV).
+ * sizes and entropy coded band by band, coarse to fine (seed 000 §4; docs/FORMAT.md, FKWV
+ * version 2), sampled in place from the asset's bytes.
  *
- * mcd_open decodes every payload of the section and runs the inverse transform once, so the
- * resident memory holds every channel reconstructed on every frame (4 bytes per channel per
- * frame). A sample then reads two rows and interpolates: no transform, no allocation.
+ * A clip is cut into blocks of B frames, each an independent wavelet signal with its own
+ * entropy stream. The scratch holds one decoded block (every channel on its B frames) and one
+ * more row: a copy of the frame on the far side of a block boundary, so the segment between
+ * the last frame of a block and the first of the next is interpolated without holding two
+ * blocks. Playing forward or backward decodes each block once; a random access decodes one
+ * block, or two on a boundary segment.
  *
- * The inverse transform works in place inside the clip's resident block. Before level l is
- * undone, rows [0, n_l) hold the level-l approximation; the level's detail band is decoded
- * straight after it, the lifting steps are undone on the two halves, and the result is
- * interleaved using the rows past n_(l-1) (not yet decoded) as room. The finest level is not
- * interleaved: even frames stay in the first half and odd frames in the second, and a sample
- * computes the row of a frame instead. */
+ * The inverse transform runs in place in the block's rows. The stream decodes into the Mallat
+ * layout (approximation first, then the details of each level, coarse to fine), and no level
+ * is interleaved: a table of row indices says where each sample of the current approximation
+ * lies, so a lifting step reads its even samples through the table and its odd samples from
+ * the contiguous detail rows. After level 1 the table gives the row of every frame. */
 #include <math.h>
 #include <string.h>
 
@@ -19,15 +22,16 @@
 
 #define HEADER 16u
 #define NODE_ENTRY 4u
-#define MAX_LEVELS 15u
-#define MAX_CODE_SUM 296u         /* step = 2^(e/4 - 64) <= 2^10 */
-#define MAX_ROI 30u               /* ROI gain and per-band shifts */
-#define MAX_VALUES (1u << 26)     /* frames x channels of one payload */
-#define MAX_RESIDENT (1u << 31)   /* the whole section's resident block */
+#define MAX_LEVELS 12u
+#define MAX_BLOCK 4096u
+#define MAX_BLOCK_VALUES (1u << 20) /* B x C: bounds the scratch at about 4 MB */
+#define MAX_FRAMES (1u << 24)
+#define MAX_CODE_SUM 296u           /* step = 2^(e/4 - 64) <= 2^10 x 1.68 */
+#define MAX_ROI 30u                 /* ROI gain and per-band shifts */
 #define CLAMP 1e7f
-#define DIR_ENTRY 8u
+#define NONE 0xFFFFFFFFu
 
-enum { ROT_IDENTITY = 0, ROT_QUATERNION = 2 };
+enum { ROT_REST = 0, ROT_QUATERNION = 2 };
 enum { TRANS_REST = 0, TRANS_CHANNELS = 2 };
 
 /* Lifting constants of the CDF 9/7 wavelet (JPEG 2000's irreversible transform). */
@@ -39,79 +43,88 @@ static const float k_scale = 1.2301741f;
 static const float k_inv_scale = 0.81289306f;
 static const float k_mantissa[4] = {1.0f, 1.1892071f, 1.4142135f, 1.6817929f};
 
-static size_t align4z(size_t x) {
-    return (x + 3u) & ~(size_t)3u;
+/* Samples of the level-l approximation of an n-sample signal: ceil(n / 2^l). */
+static uint32_t level_length(uint32_t n, uint32_t level) {
+    return (uint32_t)(((uint64_t)n + ((uint64_t)1 << level) - 1u) >> level);
 }
 
-static size_t align16z(size_t x) {
-    return (x + 15u) & ~(size_t)15u;
+/* Levels of a block of n frames: the most, up to L, such that every level splits a signal of
+ * at least two samples. */
+static uint32_t block_levels(uint32_t n, uint32_t levels) {
+    while (levels > 0u && level_length(n, levels - 1u) < 2u) levels--;
+    return levels;
 }
 
-/* Length of the level-l approximation of an F-frame channel: ceil(F / 2^l). */
-static uint32_t level_length(uint32_t frames, uint32_t level) {
-    return (uint32_t)(((uint64_t)frames + ((uint64_t)1 << level) - 1u) >> level);
-}
-
-/* Rows of band b: b = 0 the coarsest approximation, b >= 1 the details of level L + 1 - b. */
-static uint32_t band_rows(uint32_t frames, uint32_t levels, uint32_t band) {
-    uint32_t l;
-    if (band == 0) return level_length(frames, levels);
-    l = levels + 1u - band;
-    return level_length(frames, l - 1u) - level_length(frames, l);
-}
-
+/* ---------------------------------------------------------------- payload layout */
 typedef struct layout {
-    uint32_t frames, nodes, channels, levels, roi_gain, size;
-    const uint8_t *node_table, *band_codes, *roi_shifts, *band_bytes, *streams;
+    uint32_t frames, nodes, channels, block, levels, roi_gain, blocks, stream_bytes, size;
+    const uint8_t *node_table, *approx_codes, *detail_codes, *approx_shifts, *detail_shifts;
+    const uint8_t *ends, *streams;
 } layout;
 
 /* Parse the sizes of the payload at p (avail bytes readable). Returns 0 unless the header
  * is readable and the parts it announces fit in avail; checks nothing else. */
 static int read_layout(const uint8_t* p, size_t avail, layout* L) {
     size_t off, total;
-    uint32_t b;
     if (avail < HEADER) return 0;
     L->frames = mcd_rd_u32(p);
     L->nodes = mcd_rd_u32(p + 4);
     L->channels = mcd_rd_u32(p + 8);
-    L->levels = p[12];
-    L->roi_gain = p[13];
-    if (L->frames < 1u || L->nodes < 1u || L->nodes > MCD_MAX_NODES || L->levels > MAX_LEVELS) return 0;
-    if (L->channels > 7u * L->nodes) return 0;
+    L->block = mcd_rd_u16(p + 12);
+    L->levels = p[14];
+    L->roi_gain = p[15];
+    if (L->frames < 1u || L->frames > MAX_FRAMES || L->nodes < 1u || L->nodes > MCD_MAX_NODES) return 0;
+    if (L->block < 1u || L->block > MAX_BLOCK || L->levels > MAX_LEVELS) return 0;
+    if (L->channels > 7u * L->nodes || (uint64_t)L->block * L->channels > MAX_BLOCK_VALUES) return 0;
+    L->blocks = (L->frames + L->block - 1u) / L->block;
     off = HEADER + (size_t)NODE_ENTRY * L->nodes;
     L->node_table = p + HEADER;
-    L->band_codes = p + off;
-    L->roi_shifts = p + off + L->levels + 1u;
-    off += align4z(2u * (L->levels + 1u));
-    L->band_bytes = p + off;
-    off += 4u * (size_t)(L->levels + 1u);
+    L->approx_codes = p + off;
+    L->detail_codes = L->approx_codes + L->levels + 1u;
+    L->approx_shifts = L->detail_codes + L->levels;
+    L->detail_shifts = L->approx_shifts + L->levels + 1u;
+    off += mcd_align4(4u * (size_t)L->levels + 2u);
+    L->ends = p + off;
+    off += 4u * ((size_t)L->blocks + 1u);
     if (off > avail) return 0;
     L->streams = p + off;
-    total = off;
-    for (b = 0; b <= L->levels; ++b) {
-        total += mcd_rd_u32(L->band_bytes + 4u * b);
-        if (total > avail) return 0;
-    }
-    total = align4z(total);
+    L->stream_bytes = mcd_rd_u32(L->ends + 4u * (size_t)L->blocks);
+    total = mcd_align4(off + (size_t)L->stream_bytes);
     if (total > avail || total > 0xFFFFFFFFu) return 0;
     L->size = (uint32_t)total;
     return 1;
 }
 
-/* Everything about one payload the raw bytes show, apart from the entropy streams. */
-static int check_payload(const layout* L, const uint8_t* p) {
-    uint32_t i, b, channels = 0, max_track = 0, max_band = 0;
+/* Stream i (0: the approximation offsets, 1 + k: block k) is [start, end) of the stream area. */
+static uint32_t stream_start(const layout* L, uint32_t i) {
+    return i ? mcd_rd_u32(L->ends + 4u * (size_t)(i - 1u)) : 0u;
+}
+
+static uint32_t stream_end(const layout* L, uint32_t i) {
+    return mcd_rd_u32(L->ends + 4u * (size_t)i);
+}
+
+static uint32_t block_frames(const layout* L, uint32_t k) {
+    uint32_t first = k * L->block;
+    return L->frames - first < L->block ? L->frames - first : L->block;
+}
+
+/* ---------------------------------------------------------------- validation */
+/* Everything the header and tables show, apart from the entropy streams. */
+static int check_tables(const layout* L, const uint8_t* p) {
+    uint32_t i, b, channels = 0, max_track = 0, max_band = 0, prev = 0;
     size_t end;
-    if (L->roi_gain > MAX_ROI || p[14] || p[15]) return 0;
-    if ((uint64_t)L->frames * L->channels > MAX_VALUES) return 0;
-    /* Every level splits a signal of at least two samples. */
-    if (L->levels > 0u && level_length(L->frames, L->levels - 1u) < 2u) return 0;
+    const uint8_t* codes = L->approx_codes;
+    uint32_t table = 4u * L->levels + 2u;
+    if (L->roi_gain > MAX_ROI) return 0;
+    /* Every level of a full block splits a signal of at least two samples. */
+    if (block_levels(L->block, L->levels) != L->levels) return 0;
     for (i = 0; i < L->nodes; ++i) {
         const uint8_t* e = L->node_table + (size_t)NODE_ENTRY * i;
         if (e[0] == ROT_QUATERNION) {
             channels += 4u;
             if (e[2] > max_track) max_track = e[2];
-        } else if (e[0] != ROT_IDENTITY || e[2] != 0) {
+        } else if (e[0] != ROT_REST || e[2] != 0) {
             return 0;
         }
         if (e[1] == TRANS_CHANNELS) {
@@ -122,80 +135,82 @@ static int check_payload(const layout* L, const uint8_t* p) {
         }
     }
     if (channels != L->channels) return 0;
-    for (b = 0; b <= L->levels; ++b)
-        if (L->band_codes[b] > max_band) max_band = L->band_codes[b];
-    for (b = 0; b <= L->levels; ++b)
-        if (L->roi_shifts[b] > MAX_ROI) return 0;
-    for (b = 2u * (L->levels + 1u); b < align4z(2u * (L->levels + 1u)); ++b)
-        if (L->band_codes[b] != 0) return 0;
+    for (b = 0; b < 2u * L->levels + 1u; ++b)
+        if (codes[b] > max_band) max_band = codes[b];
     if (max_track + max_band > MAX_CODE_SUM) return 0;
-    /* A stream of no values is empty; any other holds at least 4 bytes (checked on decode). */
-    for (b = 0; b <= L->levels; ++b)
-        if (L->channels == 0u && mcd_rd_u32(L->band_bytes + 4u * b) != 0) return 0;
-    end = (size_t)(L->streams - p);
-    for (b = 0; b <= L->levels; ++b) end += mcd_rd_u32(L->band_bytes + 4u * b);
+    for (b = 2u * L->levels + 1u; b < table; ++b)
+        if (codes[b] > MAX_ROI) return 0;
+    for (b = table; b < mcd_align4(table); ++b)
+        if (codes[b] != 0) return 0;
+    for (b = 0; b <= L->blocks; ++b) {
+        uint32_t e = stream_end(L, b);
+        if (e < prev) return 0;
+        prev = e;
+    }
+    end = (size_t)(L->streams - p) + L->stream_bytes;
     for (; end < L->size; ++end)
         if (p[end] != 0) return 0;
     return 1;
 }
 
-/* Walk the section: payloads back to back from offset 0, each a multiple of 4 bytes, filling
- * it exactly. Returns the payload count (0 when the walk fails) and the resident bytes. When
- * `find` is not UINT32_MAX, *found is set to 1 if a payload starts at that offset with size
- * `find_size`. */
-static uint32_t walk(const uint8_t* section, uint32_t size, size_t* resident, uint32_t find,
-                     uint32_t find_size, int* found) {
-    uint32_t off = 0, count = 0;
-    size_t total = 0;
-    while (off < size) {
-        layout L;
-        if (!read_layout(section + off, size - off, &L) || !check_payload(&L, section + off)) return 0;
-        if (off == find && L.size == find_size && found) *found = 1;
-        total += align16z(4u * (size_t)L.frames * L.channels);
-        if (total > MAX_RESIDENT) return 0;
-        off += L.size;
-        count++;
-    }
-    if (count == 0u) return 0;
-    total += align16z(16u + (size_t)DIR_ENTRY * count);
-    if (total > MAX_RESIDENT) return 0;
-    *resident = total;
-    return count;
-}
-
-/* ---------------------------------------------------------------- validation */
 static mcd_result fkw_validate(const mcd_clip_view* v) {
     layout L;
-    size_t resident;
-    int found = 0;
-    uint32_t poff = (uint32_t)(v->payload - v->section);
+    uint32_t k;
     if (!read_layout(v->payload, v->payload_size, &L) || L.size != v->payload_size) return MCD_ERROR_MALFORMED;
     if (L.frames != v->frame_count || L.nodes != v->node_count) return MCD_ERROR_MALFORMED;
-    if (!check_payload(&L, v->payload)) return MCD_ERROR_MALFORMED;
-    /* Every payload of the section must be walkable, so the resident block exists. */
-    if (!walk(v->section, v->section_size, &resident, poff, v->payload_size, &found) || !found)
-        return MCD_ERROR_MALFORMED;
-    if (v->resident) {
-        /* Opened: the directory holds this payload (the walk above guarantees it). */
-        uint32_t count = mcd_rd_u32(v->resident), lo = 0, hi = count;
-        while (lo < hi) {
-            uint32_t mid = lo + (hi - lo) / 2u;
-            uint32_t at = mcd_rd_u32(v->resident + 16u + (size_t)DIR_ENTRY * mid);
-            if (at == poff) return MCD_OK;
-            if (at < poff) lo = mid + 1u; else hi = mid;
-        }
-        return MCD_ERROR_MALFORMED;
+    if (!check_tables(&L, v->payload)) return MCD_ERROR_MALFORMED;
+    /* The offsets stream holds C values and every block's stream exactly its frames x
+     * channels (an empty stream when there are none), so decoding them at sample time cannot
+     * fail. */
+    for (k = 0; k <= L.blocks; ++k) {
+        uint32_t start = stream_start(&L, k), count = k ? block_frames(&L, k - 1u) * L.channels : L.channels;
+        if (mcd_entropy_check(L.streams + start, stream_end(&L, k) - start, 1u, count) != MCD_OK)
+            return MCD_ERROR_MALFORMED;
     }
     return MCD_OK;
 }
 
-static size_t fkw_resident_size(const uint8_t* section, uint32_t size) {
-    size_t total = 0;
-    if (!walk(section, size, &total, UINT32_MAX, 0, NULL)) return 0;
-    return total;
+/* ---------------------------------------------------------------- scratch */
+/* The codec's area: this header, the row table (u16 per frame of a block), the block's rows
+ * (B x C binary32), the edge row (C binary32) and the approximation offsets (C int32), each
+ * 16-aligned. */
+typedef struct state {
+    uint32_t slot; /* block whose rows are decoded, or NONE */
+    uint32_t edge; /* frame the edge row holds, or NONE */
+    uint32_t reserved[2];
+} state;
+
+typedef struct view {
+    state* st;
+    uint16_t* rows;
+    float* slot;
+    float* edge;
+    int32_t* offsets;
+} view;
+
+static size_t fkw_scratch_size(const mcd_clip_view* v) {
+    layout L;
+    if (!read_layout(v->payload, v->payload_size, &L)) return 0;
+    return mcd_align16(sizeof(state)) + mcd_align16(2u * (size_t)L.block) +
+           mcd_align16(4u * (size_t)L.block * L.channels) + 2u * mcd_align16(4u * (size_t)L.channels);
 }
 
-/* ---------------------------------------------------------------- open: decode + synthesis */
+static view scratch_view(const layout* L, void* scratch) {
+    view s;
+    uint8_t* p = (uint8_t*)scratch;
+    s.st = (state*)(void*)p;
+    p += mcd_align16(sizeof(state));
+    s.rows = (uint16_t*)(void*)p;
+    p += mcd_align16(2u * (size_t)L->block);
+    s.slot = (float*)(void*)p;
+    p += mcd_align16(4u * (size_t)L->block * L->channels);
+    s.edge = (float*)(void*)p;
+    p += mcd_align16(4u * (size_t)L->channels);
+    s.offsets = (int32_t*)(void*)p;
+    return s;
+}
+
+/* ---------------------------------------------------------------- block decoding */
 static float clampf(float x) {
     return x > CLAMP ? CLAMP : x < -CLAMP ? -CLAMP : x;
 }
@@ -204,216 +219,191 @@ static float step_for(uint32_t code_sum) {
     return ldexpf(k_mantissa[code_sum & 3u], (int)(code_sum >> 2) - 64);
 }
 
-/* The quantization step of every channel for band code `band_code` into steps[C]. */
-static void channel_steps(const layout* L, uint32_t band_code, float* steps) {
-    uint32_t i, c = 0, k;
+/* Rows [r0, r0 + rows) of the slot hold one band's values as int32 (the entropy decoder's
+ * output): replace each by its binary32 value, q x step, or for |q| >= 2^shift (an ROI value,
+ * max-shift coding) q x step x 2^-(shift + roi_gain); clamped. Node by node, so each step is
+ * computed once per band. */
+static void dequantize_band(const layout* L, float* slot, uint32_t r0, uint32_t rows, uint32_t code,
+                            uint32_t shift) {
+    uint32_t i, c = 0, r, k, C = L->channels;
+    uint32_t threshold = shift ? (uint32_t)1u << shift : NONE;
+    int roi_exp = -(int)(shift + L->roi_gain);
     for (i = 0; i < L->nodes; ++i) {
         const uint8_t* e = L->node_table + (size_t)NODE_ENTRY * i;
-        if (e[0] == ROT_QUATERNION)
-            for (k = 0; k < 4u; ++k) steps[c++] = step_for(e[2] + band_code);
-        if (e[1] == TRANS_CHANNELS)
-            for (k = 0; k < 3u; ++k) steps[c++] = step_for(e[3] + band_code);
-    }
-}
-
-/* Decode band b into rows (count rows x C) as floats: value x step, or, for a value at or
- * above the band's ROI threshold 2^shift (max-shift ROI coding), value x step x 2^-(shift +
- * roi_gain). The decoder writes int32 in place; each is read back and replaced by its float
- * through memcpy. */
-static mcd_result decode_band(const layout* L, uint32_t b, const uint8_t* stream, uint32_t bytes,
-                              uint32_t rows, float* out, float* steps, int clamp) {
-    uint32_t r, c, shift = L->roi_shifts[b];
-    uint32_t threshold = shift ? (uint32_t)1u << shift : 0xFFFFFFFFu;
-    int scale = -(int)(shift + L->roi_gain);
-    size_t n = (size_t)rows * L->channels;
-    int32_t* ints = (int32_t*)(void*)out;
-    mcd_result res;
-    if (n == 0) return bytes == 0 ? MCD_OK : MCD_ERROR_MALFORMED;
-    res = mcd_entropy_decode(stream, bytes, 1u, ints, (uint32_t)n);
-    if (res != MCD_OK) return MCD_ERROR_MALFORMED;
-    channel_steps(L, L->band_codes[b], steps);
-    for (r = 0; r < rows; ++r) {
-        for (c = 0; c < L->channels; ++c) {
-            size_t at = (size_t)r * L->channels + c;
-            int32_t q;
-            uint32_t mag;
-            float f;
-            memcpy(&q, out + at, sizeof q);
-            mag = q < 0 ? (uint32_t)(-(q + 1)) + 1u : (uint32_t)q; /* |q| <= 2^30 - 1 */
-            f = (float)q * (mag >= threshold ? ldexpf(steps[c], scale) : steps[c]);
-            if (clamp) f = clampf(f);
-            memcpy(out + at, &f, sizeof f);
+        uint32_t part;
+        for (part = 0; part < 2u; ++part) {
+            uint32_t width = part == 0 ? (e[0] == ROT_QUATERNION ? 4u : 0u) : (e[1] == TRANS_CHANNELS ? 3u : 0u);
+            float step, fine;
+            if (!width) continue;
+            step = step_for(e[2u + part] + code);
+            fine = ldexpf(step, roi_exp);
+            for (r = r0; r < r0 + rows; ++r) {
+                float* row = slot + (size_t)r * C + c;
+                for (k = 0; k < width; ++k) {
+                    int32_t q;
+                    uint32_t mag;
+                    float f;
+                    memcpy(&q, row + k, sizeof q);
+                    mag = q < 0 ? (uint32_t)(-(q + 1)) + 1u : (uint32_t)q; /* |q| <= 2^30 - 1 */
+                    f = clampf((float)q * (mag >= threshold ? fine : step));
+                    memcpy(row + k, &f, sizeof f);
+                }
+            }
+            c += width;
         }
     }
-    return MCD_OK;
 }
 
-/* One lifting step on the even rows: s[k] -= w (d[k-1] + d[k]), d[-1] = d[0], d[nd] = d[nd-1]. */
-static void lift_even(float* s, const float* d, uint32_t ns, uint32_t nd, uint32_t C, float w) {
+/* s[k] -= w (d[k-1] + d[k]) for the ns even samples (rows through the table), d[-1] = d[0],
+ * d[nd] = d[nd-1]: the whole-sample symmetric extension. */
+static void lift_even(float* x, const uint16_t* rows, uint32_t ns, uint32_t nd, uint32_t C, float w) {
     uint32_t k, c;
+    const float* d = x + (size_t)ns * C;
     for (k = 0; k < ns; ++k) {
+        float* s = x + (size_t)rows[k] * C;
         const float* dl = d + (size_t)(k > 0u ? k - 1u : 0u) * C;
         const float* dr = d + (size_t)(k < nd ? k : nd - 1u) * C;
-        for (c = 0; c < C; ++c) s[(size_t)k * C + c] -= w * (dl[c] + dr[c]);
+        for (c = 0; c < C; ++c) s[c] -= w * (dl[c] + dr[c]);
     }
 }
 
-/* One lifting step on the odd rows: d[k] -= w (s[k] + s[k+1]), s[ns] = s[ns-1]. */
-static void lift_odd(const float* s, float* d, uint32_t ns, uint32_t nd, uint32_t C, float w) {
+/* d[k] -= w (s[k] + s[k+1]) for the nd odd samples, s[ns] = s[ns-1]. */
+static void lift_odd(float* x, const uint16_t* rows, uint32_t ns, uint32_t nd, uint32_t C, float w) {
     uint32_t k, c;
+    float* d = x + (size_t)ns * C;
     for (k = 0; k < nd; ++k) {
-        const float* sl = s + (size_t)k * C;
-        const float* sr = s + (size_t)(k + 1u < ns ? k + 1u : ns - 1u) * C;
-        for (c = 0; c < C; ++c) d[(size_t)k * C + c] -= w * (sl[c] + sr[c]);
+        float* dk = d + (size_t)k * C;
+        const float* sl = x + (size_t)rows[k] * C;
+        const float* sr = x + (size_t)rows[k + 1u < ns ? k + 1u : ns - 1u] * C;
+        for (c = 0; c < C; ++c) dk[c] -= w * (sl[c] + sr[c]);
     }
 }
 
-/* Undo one level: s = rows [0, ns), d = rows [ns, ns + nd), C floats per row. The boundary
- * rules above are the whole-sample symmetric extension. */
-static void inverse_lifting(float* s, float* d, uint32_t ns, uint32_t nd, uint32_t C) {
-    uint32_t k, c;
+/* Undo one level: the approximation's ns samples lie at rows[0 .. ns), the level's nd details
+ * in rows [ns, ns + nd); afterwards rows[] places the ns + nd samples of the finer one. */
+static void inverse_level(float* x, uint16_t* rows, uint32_t ns, uint32_t nd, uint32_t C) {
+    uint32_t k, c, j;
     for (k = 0; k < ns; ++k)
-        for (c = 0; c < C; ++c) s[(size_t)k * C + c] *= k_scale;
-    for (k = 0; k < nd; ++k)
-        for (c = 0; c < C; ++c) d[(size_t)k * C + c] *= k_inv_scale;
-    lift_even(s, d, ns, nd, C, k_delta);
-    lift_odd(s, d, ns, nd, C, k_gamma);
-    lift_even(s, d, ns, nd, C, k_beta);
-    lift_odd(s, d, ns, nd, C, k_alpha);
-    for (k = 0; k < (ns + nd) * C; ++k) s[k] = clampf(s[k]);
+        for (c = 0; c < C; ++c) x[(size_t)rows[k] * C + c] *= k_scale;
+    for (k = 0; k < (size_t)nd * C; ++k) x[(size_t)ns * C + k] *= k_inv_scale;
+    lift_even(x, rows, ns, nd, C, k_delta);
+    lift_odd(x, rows, ns, nd, C, k_gamma);
+    lift_even(x, rows, ns, nd, C, k_beta);
+    lift_odd(x, rows, ns, nd, C, k_alpha);
+    for (k = 0; k < (ns + nd) * C; ++k) x[k] = clampf(x[k]);
+    /* Sample 2k is the even sample k, sample 2k + 1 the detail row ns + k. Top down, so each
+     * entry read (j / 2 < j) is still the coarser level's. */
+    for (j = ns + nd; j-- > 0u;) rows[j] = (uint16_t)((j & 1u) ? ns + (j >> 1) : rows[j >> 1]);
 }
 
-/* Rows [0, ns) = even samples, [ns, ns + nd) = odd: put them in sample order, with the nd
- * rows from `room` as temporary space. */
-static void interleave(float* x, uint32_t ns, uint32_t nd, uint32_t C, float* room) {
-    size_t row = (size_t)C * sizeof(float);
-    uint32_t k;
-    memcpy(room, x + (size_t)ns * C, (size_t)nd * row);
-    for (k = ns; k-- > 1u;) memcpy(x + (size_t)(2u * k) * C, x + (size_t)k * C, row);
-    for (k = 0; k < nd; ++k) memcpy(x + (size_t)(2u * k + 1u) * C, room + (size_t)k * C, row);
-}
-
-static mcd_result open_payload(const layout* L, float* x, float* steps) {
-    const uint8_t* stream = L->streams;
-    uint32_t b, l, C = L->channels;
-    mcd_result r;
-    uint32_t bytes = mcd_rd_u32(L->band_bytes);
-    r = decode_band(L, 0, stream, bytes, band_rows(L->frames, L->levels, 0), x, steps, 1);
-    if (r != MCD_OK) return r;
-    stream += bytes;
-    for (b = 1; b <= L->levels; ++b) {
-        uint32_t ns, nd;
-        l = L->levels + 1u - b;
-        ns = level_length(L->frames, l);
-        nd = level_length(L->frames, l - 1u) - ns;
-        bytes = mcd_rd_u32(L->band_bytes + 4u * b);
-        r = decode_band(L, b, stream, bytes, nd, x + (size_t)ns * C, steps, 0);
-        if (r != MCD_OK) return r;
-        stream += bytes;
-        if (C == 0u) continue;
-        inverse_lifting(x, x + (size_t)ns * C, ns, nd, C);
-        if (l > 1u) interleave(x, ns, nd, C, x + (size_t)(ns + nd) * C);
+/* Decode block k into the slot: its stream, the dequantization band by band, the synthesis.
+ * Cannot fail on a validated payload. */
+static void decode_block(const layout* L, const view* s, uint32_t k) {
+    uint32_t n = block_frames(L, k), levels = block_levels(n, L->levels), C = L->channels;
+    uint32_t start = stream_start(L, k + 1u), l, r0, j, c;
+    s->st->slot = k;
+    for (j = 0; j < n; ++j) s->rows[j] = (uint16_t)j; /* the approximation's rows; the rest is rewritten */
+    if (C == 0u) return;
+    (void)mcd_entropy_decode(L->streams + start, stream_end(L, k + 1u) - start, 1u, (int32_t*)(void*)s->slot, n * C);
+    r0 = level_length(n, levels);
+    if (levels == L->levels) { /* the approximation is coded as its deviation from the offsets */
+        (void)mcd_entropy_decode(L->streams, stream_end(L, 0), 1u, s->offsets, C);
+        for (j = 0; j < r0; ++j) {
+            int32_t* row = (int32_t*)(void*)(s->slot + (size_t)j * C);
+            for (c = 0; c < C; ++c) row[c] = (int32_t)((int64_t)row[c] + s->offsets[c]);
+        }
     }
-    return MCD_OK;
+    dequantize_band(L, s->slot, 0u, r0, L->approx_codes[levels], L->approx_shifts[levels]);
+    for (l = levels; l >= 1u; --l) {
+        uint32_t rows = level_length(n, l - 1u) - level_length(n, l);
+        dequantize_band(L, s->slot, r0, rows, L->detail_codes[l - 1u], L->detail_shifts[l - 1u]);
+        r0 += rows;
+    }
+    for (l = levels; l >= 1u; --l) {
+        uint32_t ns = level_length(n, l);
+        inverse_level(s->slot, s->rows, ns, level_length(n, l - 1u) - ns, C);
+    }
 }
 
-static mcd_result fkw_open_section(const uint8_t* section, uint32_t size, uint8_t* resident) {
-    size_t total = 0, at;
-    uint32_t count = walk(section, size, &total, UINT32_MAX, 0, NULL), off = 0, i;
-    float steps[7u * MCD_MAX_NODES]; /* one step per channel, C <= 7 x node_count */
-    if (!count) return MCD_ERROR_MALFORMED;
-    at = align16z(16u + (size_t)DIR_ENTRY * count);
-    memcpy(resident, &count, 4);
-    for (i = 0; i < count; ++i) {
-        layout L;
-        uint32_t rel = (uint32_t)at;
-        mcd_result r;
-        read_layout(section + off, size - off, &L);
-        memcpy(resident + 16u + (size_t)DIR_ENTRY * i, &off, 4);
-        memcpy(resident + 16u + (size_t)DIR_ENTRY * i + 4u, &rel, 4);
-        r = open_payload(&L, (float*)(void*)(resident + at), steps);
-        if (r != MCD_OK) return r;
-        at += align16z(4u * (size_t)L.frames * L.channels);
-        off += L.size;
+/* The decoded channels of frame f: a row of the slot, or the edge row. */
+static const float* frame_values(const layout* L, const view* s, uint32_t f) {
+    if (f / L->block == s->st->slot) return s->slot + (size_t)s->rows[f % L->block] * L->channels;
+    return s->edge;
+}
+
+static void copy_edge(const layout* L, const view* s, uint32_t f) {
+    memcpy(s->edge, frame_values(L, s, f), 4u * (size_t)L->channels);
+    s->st->edge = f;
+}
+
+/* Make frames f0 and f1 = f0 + 1 (or f0 alone when f1 == f0) readable. On a block boundary
+ * the slot holds one side and the edge row a copy of the other: forward playback keeps the
+ * last frame of the block it leaves, backward playback the first frame of the block it leaves,
+ * so each block is decoded once whichever way the clip plays. */
+static void prepare_frames(const layout* L, const view* s, uint32_t f0, uint32_t f1) {
+    uint32_t k0 = f0 / L->block, k1 = f1 / L->block;
+    if (k0 == k1) {
+        if (s->st->slot != k0) decode_block(L, s, k0);
+        return;
     }
-    return MCD_OK;
+    if ((s->st->slot == k0 && s->st->edge == f1) || (s->st->slot == k1 && s->st->edge == f0)) return;
+    if (s->st->slot == k1) { /* backward: keep the first frame of k1 */
+        copy_edge(L, s, f1);
+        decode_block(L, s, k0);
+        return;
+    }
+    if (s->st->slot != k0) decode_block(L, s, k0);
+    copy_edge(L, s, f0);
+    decode_block(L, s, k1);
 }
 
 /* ---------------------------------------------------------------- sampling */
-static size_t fkw_scratch_size(const mcd_clip_view* v) {
-    (void)v;
-    return 0;
-}
-
-static const float* clip_rows(const mcd_clip_view* v) {
-    uint32_t poff = (uint32_t)(v->payload - v->section);
-    uint32_t count = mcd_rd_u32(v->resident), lo = 0, hi = count;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2u;
-        const uint8_t* e = v->resident + 16u + (size_t)DIR_ENTRY * mid;
-        uint32_t at = mcd_rd_u32(e);
-        if (at == poff) return (const float*)(const void*)(v->resident + mcd_rd_u32(e + 4));
-        if (at < poff) lo = mid + 1u; else hi = mid;
-    }
-    return NULL;
-}
-
-/* Row of frame f: the finest level leaves even frames first, then odd ones. */
-static uint32_t frame_row(uint32_t f, uint32_t frames, uint32_t levels) {
-    if (levels == 0u) return f;
-    return (f & 1u) ? level_length(frames, 1u) + (f >> 1) : (f >> 1);
-}
-
-static mcd_result fkw_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out,
-                             void* scratch, int fresh) {
+static void fkw_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                       int fresh) {
     layout L;
-    const float *rows, *a, *b;
-    uint32_t i0, i1, i, c = 0;
+    view s;
+    const float *a, *b;
+    uint32_t f0, f1, i, c = 0, k;
     float t;
     (void)flags;
-    (void)scratch;
-    (void)fresh;
-    if (!v->resident) return MCD_ERROR_MALFORMED;
-    read_layout(v->payload, v->payload_size, &L);
-    rows = clip_rows(v);
-    if (!rows) return MCD_ERROR_MALFORMED;
-    i0 = (uint32_t)x;
-    if (i0 > L.frames - 1u) i0 = L.frames - 1u;
-    i1 = i0 + 1u < L.frames ? i0 + 1u : i0;
-    t = x - (float)i0;
-    a = rows + (size_t)frame_row(i0, L.frames, L.levels) * L.channels;
-    b = rows + (size_t)frame_row(i1, L.frames, L.levels) * L.channels;
+    read_layout(v->payload, v->payload_size, &L); /* validated: cannot fail */
+    s = scratch_view(&L, scratch);
+    if (fresh) {
+        s.st->slot = NONE;
+        s.st->edge = NONE;
+    }
+    f0 = (uint32_t)x;
+    if (f0 > L.frames - 1u) f0 = L.frames - 1u;
+    t = x - (float)f0;
+    f1 = t > 0.0f && f0 + 1u < L.frames ? f0 + 1u : f0;
+    prepare_frames(&L, &s, f0, f1);
+    a = frame_values(&L, &s, f0);
+    b = frame_values(&L, &s, f1);
     for (i = 0; i < L.nodes; ++i) {
         const uint8_t* e = L.node_table + (size_t)NODE_ENTRY * i;
-        const uint8_t* rec = v->skeleton + 16 + (size_t)i * MCD_SKEL_NODE_SIZE;
-        float q[4] = {0.0f, 0.0f, 0.0f, 1.0f};
-        uint32_t k;
+        mcd_skel_rest(v->skeleton, i, &out[i]);
         if (e[0] == ROT_QUATERNION) {
-            float n2 = 0.0f;
+            float q[4], n2 = 0.0f;
             for (k = 0; k < 4u; ++k) {
-                q[k] = a[c + k] + (b[c + k] - a[c + k]) * t;
+                q[k] = f1 == f0 ? a[c + k] : a[c + k] + (b[c + k] - a[c + k]) * t;
                 n2 += q[k] * q[k];
             }
             c += 4u;
             if (n2 > 1e-30f) {
                 float inv = 1.0f / sqrtf(n2);
-                for (k = 0; k < 4u; ++k) q[k] *= inv;
+                for (k = 0; k < 4u; ++k) out[i].rotation[k] = q[k] * inv;
             } else {
-                q[0] = q[1] = q[2] = 0.0f;
-                q[3] = 1.0f;
+                out[i].rotation[0] = out[i].rotation[1] = out[i].rotation[2] = 0.0f;
+                out[i].rotation[3] = 1.0f;
             }
         }
-        for (k = 0; k < 4u; ++k) out[i].rotation[k] = q[k];
         if (e[1] == TRANS_CHANNELS) {
-            for (k = 0; k < 3u; ++k) out[i].translation[k] = a[c + k] + (b[c + k] - a[c + k]) * t;
+            for (k = 0; k < 3u; ++k)
+                out[i].translation[k] = f1 == f0 ? a[c + k] : a[c + k] + (b[c + k] - a[c + k]) * t;
             c += 3u;
-        } else {
-            for (k = 0; k < 3u; ++k) out[i].translation[k] = mcd_rd_f32(rec + 8 + 4 * k);
         }
     }
-    return MCD_OK;
 }
 
 const mcd_codec_ops mcd_codec_fkwavelet_ops = {
-    MCD_CODEC_FK_WAVELET, 0x56574B46u /* "FKWV" */, fkw_validate, fkw_resident_size,
-    fkw_open_section, fkw_scratch_size, fkw_sample};
+    MCD_CODEC_FK_WAVELET, 0x56574B46u /* "FKWV" */, 2u, NULL, fkw_validate, fkw_scratch_size, fkw_sample};

@@ -24,7 +24,6 @@
 #define HEADER 48u
 #define NODE_RECORD 32u
 #define BLOCK_ENTRY 16u
-#define MAX_FRAMES (1u << 24)
 #define MAX_BLOCK_FRAMES 4096u
 #define MAX_CHAINS 16u
 #define MAX_CHAIN_TOTAL 4096u
@@ -93,7 +92,7 @@ static int read_head(const uint8_t* p, size_t avail, layout* L) {
     L->flags = p[36];
     L->stream_bytes = mcd_rd_u32(p + 40);
     L->coded = mcd_rd_u32(p + 44);
-    if (L->frames < 1u || L->frames > MAX_FRAMES || L->nodes < 1u || L->nodes > MCD_MAX_NODES) return 0;
+    if (L->frames < 1u || L->frames > MCD_MAX_FRAMES || L->nodes < 1u || L->nodes > MCD_MAX_NODES) return 0;
     if (L->block_frames < 1u || L->block_frames > MAX_BLOCK_FRAMES) return 0;
     if (L->coded < 1u || L->coded > L->frames) return 0;
     if (L->chains > MAX_CHAINS || L->chain_total > MAX_CHAIN_TOTAL) return 0;

@@ -6,6 +6,7 @@ static const mcd_codec_ops* const k_codecs[] = {
     &mcd_codec_neural_ops,
     &mcd_codec_rma_ops,
     &mcd_codec_ikpredict_ops,
+    &mcd_codec_fkwavelet_ops,
 };
 
 const mcd_codec_ops* mcd_find_codec(uint32_t codec) {

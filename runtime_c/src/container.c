@@ -79,8 +79,9 @@ static int all_zero(const uint8_t* p, uint64_t n) {
     return 1;
 }
 
-/* Sections packed in table order, 16-aligned, zero gaps, total = align16(end of last). */
-static mcd_result check_section_table(const uint8_t* d, uint32_t count) {
+/* Sections packed in table order, 16-aligned, total = align16(end of last); with `full`, the
+ * gaps are zero too (they lie among the codec payloads, which a prevalidated open never reads). */
+static mcd_result check_section_table(const uint8_t* d, uint32_t count, int full) {
     uint32_t total = mcd_rd_u32(d + 16);
     uint64_t expect = align16((uint64_t)MCD_HEADER_SIZE + (uint64_t)count * MCD_SECTION_ENTRY_SIZE);
     uint64_t prev_end = (uint64_t)MCD_HEADER_SIZE + (uint64_t)count * MCD_SECTION_ENTRY_SIZE;
@@ -90,12 +91,12 @@ static mcd_result check_section_table(const uint8_t* d, uint32_t count) {
         uint64_t off = mcd_rd_u32(e + 8), sz = mcd_rd_u32(e + 12);
         if (off != expect) return MCD_ERROR_MALFORMED;
         if (off + sz > total) return MCD_ERROR_MALFORMED;
-        if (!all_zero(d + prev_end, off - prev_end)) return MCD_ERROR_MALFORMED;
+        if (full && !all_zero(d + prev_end, off - prev_end)) return MCD_ERROR_MALFORMED;
         prev_end = off + sz;
         expect = align16(prev_end);
     }
     if (expect != total) return MCD_ERROR_MALFORMED;
-    if (!all_zero(d + prev_end, total - prev_end)) return MCD_ERROR_MALFORMED;
+    if (full && !all_zero(d + prev_end, total - prev_end)) return MCD_ERROR_MALFORMED;
     return MCD_OK;
 }
 
@@ -221,7 +222,7 @@ static mcd_result check_clips(mcd_asset* a, uint32_t clip_section, int full) {
         uint32_t need = mcd_rd_u32(r + 40);
         mcd_result res;
         if (!mcd_valid_name(d + a->clip_strings, a->clip_strings_size, mcd_rd_u32(r), 1)) return MCD_ERROR_MALFORMED;
-        if (mcd_rd_u32(r + 24) < 1) return MCD_ERROR_MALFORMED;
+        if (mcd_rd_u32(r + 24) < 1 || mcd_rd_u32(r + 24) > MCD_MAX_FRAMES) return MCD_ERROR_MALFORMED;
         if (!mcd_finite(rate) || !(rate > 0.0f) || rate > MCD_MAX_FRAME_RATE) return MCD_ERROR_MALFORMED;
         expect = (float)((double)(mcd_rd_u32(r + 24) - 1u) / (double)rate);
         tol = 1e-4f * (expect > 1.0f ? expect : 1.0f);
@@ -254,7 +255,7 @@ static mcd_result validate_into(const void* data, size_t size, uint32_t flags, i
     if (full && !(flags & MCD_VALIDATE_SKIP_CHECKSUM) &&
         mcd_crc32(d + 24, (size_t)mcd_rd_u32(d + 16) - 24u) != mcd_rd_u32(d + 20))
         return MCD_ERROR_CHECKSUM;
-    r = check_section_table(d, count);
+    r = check_section_table(d, count, full);
     if (r != MCD_OK) return r;
     r = scan_sections(d, count, full, &t);
     if (r != MCD_OK) return r;

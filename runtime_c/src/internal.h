@@ -19,6 +19,7 @@
 #define MCD_CLIP_RECORD_SIZE 48u
 #define MCD_MAX_NAME_BYTES 255u /* clip and node names, without the NUL */
 #define MCD_MAX_FRAME_RATE 100000.0f
+#define MCD_MAX_FRAMES (1u << 24) /* frames of a clip: frame positions are binary32, exact up to 2^24 */
 #define MCD_MAX_ABS_VALUE 1e7f /* bound on every stored length or parameter: keeps outputs finite */
 
 /* ---------------------------------------------------------------- little-endian byte loads */

@@ -16,7 +16,8 @@
 #include "harness.h"
 
 #define MAX_NODES 1024u
-#define SKEL_NODE 56u /* bytes of a SKEL version 2 node record */
+#define SKEL_NODE 32u /* bytes of a SKEL version 2 node record */
+#define SKEL_REST 28u /* bytes of a rest-table entry: rotation x y z w, scale x y z */
 
 /* ---------------------------------------------------------------- format 1 */
 
@@ -150,7 +151,7 @@ void test_name_rules(void) {
 
 typedef struct skel_edit {
     uint32_t node;  /* UINT32_MAX: the section header */
-    uint32_t at;    /* byte in the record (or header) */
+    uint32_t at;    /* byte in the node record, the node's rest-table entry, or the header */
     int width;      /* 1 or 4 */
     uint32_t value; /* bits */
     mcd_result want;
@@ -165,30 +166,43 @@ static uint32_t bits(float f) {
 
 #define HDR UINT32_MAX
 #define REST_T 8u
-#define REST_R 20u
-#define REST_S 36u
-#define KIND 48u
-#define CHANNELS 49u
+#define KIND 20u
+#define CHANNELS 21u
+#define RESERVED 28u
+#define REST_R 0u  /* in the rest-table entry */
+#define REST_S 16u /* in the rest-table entry */
+
+/* Apply each edit to a copy of `f` (skeleton at `skel`, `nodes` nodes); `rest_table`: the
+ * edits address the node's rest-table entry instead of its record. */
+static void apply_skel_edits(const mcd_test_file* f, uint32_t skel, uint32_t nodes, int rest_table,
+                             const skel_edit* edits, size_t count) {
+    uint8_t* copy = mcd_test_copy(f->data, f->size);
+    size_t i;
+    for (i = 0; copy && i < count; ++i) {
+        const skel_edit* d = &edits[i];
+        uint32_t base = d->node == HDR ? 0u
+                        : rest_table  ? 16u + SKEL_NODE * nodes + SKEL_REST * d->node
+                                      : 16u + SKEL_NODE * d->node;
+        uint8_t* p = copy + skel + base + d->at;
+        mcd_result r;
+        memcpy(copy, f->data, f->size);
+        if (d->width == 4) mcd_test_wr_u32(p, d->value);
+        else *p = (uint8_t)d->value;
+        mcd_test_fix_crc(copy, f->size);
+        r = mcd_validate(copy, f->size, 0);
+        CHECK_MSG(r == d->want, "%s: SKEL %s: %s, expected %s", f->path, d->what, mcd_result_string(r), mcd_result_string(d->want));
+    }
+    free(copy);
+}
 
 /* Node numbers of the CMU skeleton (test_golden.c checks them): 0 Hips (6 channels), 1
  * LHipJoint (3 channels, children), 6 the first End Site, 7 RHipJoint (a child of Hips). */
 static void check_skeleton_edits(const mcd_test_file* f) {
     const skel_edit edits[] = {
-        {6, REST_R + 12, 4, bits(1.0f + 0.9e-5f), MCD_OK, "rest rotation |q| 1 + 0.9e-5"},
-        {6, REST_R + 12, 4, bits(1.0f - 0.9e-5f), MCD_OK, "rest rotation |q| 1 - 0.9e-5"},
-        {6, REST_R + 12, 4, bits(1.0f + 1.1e-5f), MCD_ERROR_MALFORMED, "rest rotation |q| 1 + 1.1e-5"},
-        {6, REST_R + 12, 4, bits(1.0f - 1.1e-5f), MCD_ERROR_MALFORMED, "rest rotation |q| 1 - 1.1e-5"},
-        {6, REST_R + 12, 4, bits(0.0f), MCD_ERROR_MALFORMED, "rest rotation zero"},
-        {6, REST_R + 12, 4, bits(-1.0f), MCD_OK, "rest rotation -identity"},
-        {6, REST_R, 4, bits(0.01f), MCD_ERROR_MALFORMED, "rest rotation x 0.01 beside w 1"},
-        {6, REST_R + 4, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest rotation NaN"},
         {6, REST_T, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest translation NaN"},
         {6, REST_T + 4, 4, 0x7F800000u, MCD_ERROR_MALFORMED, "rest translation inf"},
         {6, REST_T + 8, 4, bits(2e7f), MCD_ERROR_MALFORMED, "rest translation 2e7"},
         {6, REST_T + 8, 4, bits(-1e6f), MCD_OK, "rest translation -1e6"},
-        {6, REST_S, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest scale NaN"},
-        {6, REST_S + 4, 4, bits(-2e7f), MCD_ERROR_MALFORMED, "rest scale -2e7"},
-        {6, REST_S + 8, 4, bits(2.5f), MCD_OK, "rest scale 2.5"},
         {6, KIND, 1, 3, MCD_ERROR_MALFORMED, "kind 3"},
         {6, KIND, 1, 255, MCD_ERROR_MALFORMED, "kind 255"},
         {6, KIND, 1, 2, MCD_OK, "end site made virtual"},
@@ -205,37 +219,28 @@ static void check_skeleton_edits(const mcd_test_file* f) {
         {1, CHANNELS + 2, 1, 5, MCD_ERROR_MALFORMED, "a channel twice (Z rotation)"},
         {1, CHANNELS + 4, 1, 0, MCD_ERROR_MALFORMED, "unused channel slot not 0xFF"},
         {6, CHANNELS, 1, 1, MCD_ERROR_MALFORMED, "an end site with a channel"},
+        {1, RESERVED, 4, 1, MCD_ERROR_MALFORMED, "node reserved word 1"},
         {HDR, 0, 4, 0, MCD_ERROR_MALFORMED, "node count 0"},
         {HDR, 0, 4, 1025, MCD_ERROR_MALFORMED, "node count 1025"},
-        {HDR, 4, 4, 1, MCD_ERROR_MALFORMED, "reserved word 1"},
+        {HDR, 4, 4, 1, MCD_ERROR_MALFORMED, "rest-table flag without the table"},
+        {HDR, 4, 4, 2, MCD_ERROR_MALFORMED, "flags bit 1"},
         {HDR, 8, 4, bits(0.0f), MCD_ERROR_MALFORMED, "cm per unit 0"},
         {HDR, 8, 4, bits(-1.0f), MCD_ERROR_MALFORMED, "cm per unit -1"},
         {HDR, 8, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "cm per unit NaN"},
         {HDR, 12, 4, 16u + 38u * SKEL_NODE - 4u, MCD_ERROR_MALFORMED, "string block inside the records"},
     };
-    uint32_t skel = 0, i;
+    uint32_t skel;
     const uint8_t* e = mcd_test_section(f->data, "SKEL", 0, NULL);
     uint8_t* copy;
-    if (!e || mcd_test_rd_u32(f->data + mcd_test_rd_u32(e + 8)) != 38u) {
-        FAIL("%s: no 38-node SKEL section", f->path);
+    if (!e || mcd_test_rd_u32(f->data + mcd_test_rd_u32(e + 8)) != 38u || mcd_test_rd_u32(f->data + mcd_test_rd_u32(e + 8) + 4) != 0) {
+        FAIL("%s: no 38-node SKEL section without a rest table", f->path);
         return;
     }
     skel = mcd_test_rd_u32(e + 8);
-    copy = mcd_test_copy(f->data, f->size);
-    for (i = 0; copy && i < sizeof edits / sizeof edits[0]; ++i) {
-        const skel_edit* d = &edits[i];
-        uint8_t* p = copy + skel + (d->node == HDR ? 0u : 16u + SKEL_NODE * d->node) + d->at;
-        mcd_result r;
-        memcpy(copy, f->data, f->size);
-        if (d->width == 4) mcd_test_wr_u32(p, d->value);
-        else *p = (uint8_t)d->value;
-        mcd_test_fix_crc(copy, f->size);
-        r = mcd_validate(copy, f->size, 0);
-        CHECK_MSG(r == d->want, "%s: SKEL %s: %s, expected %s", f->path, d->what, mcd_result_string(r), mcd_result_string(d->want));
-    }
+    apply_skel_edits(f, skel, 38u, 0, edits, sizeof edits / sizeof edits[0]);
     /* The leaf rule holds for virtual points too: make node 6 virtual, then hang node 7 below it. */
+    copy = mcd_test_copy(f->data, f->size);
     if (copy) {
-        memcpy(copy, f->data, f->size);
         copy[skel + 16u + SKEL_NODE * 6u + KIND] = 2;
         mcd_test_wr_u32(copy + skel + 16u + SKEL_NODE * 7u, 6);
         mcd_test_fix_crc(copy, f->size);
@@ -244,18 +249,64 @@ static void check_skeleton_edits(const mcd_test_file* f) {
     free(copy);
 }
 
+/* The rest table (SKEL flags bit 0), on the skeletons that have one. */
+static void check_rest_table_edits(const mcd_test_file* f, uint32_t* checked) {
+    const skel_edit edits[] = {
+        {1, REST_R + 12, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest rotation w NaN"},
+        {1, REST_R + 4, 4, 0x7F800000u, MCD_ERROR_MALFORMED, "rest rotation y inf"},
+        {1, REST_S, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest scale NaN"},
+        {1, REST_S + 4, 4, bits(-2e7f), MCD_ERROR_MALFORMED, "rest scale -2e7"},
+        {1, REST_S + 8, 4, bits(2.5f), MCD_OK, "rest scale 2.5"},
+    };
+    uint32_t k;
+    const uint8_t* e;
+    for (k = 0; (e = mcd_test_section(f->data, "SKEL", k, NULL)) != NULL; ++k) {
+        uint32_t skel = mcd_test_rd_u32(e + 8), nodes = mcd_test_rd_u32(f->data + skel);
+        uint8_t* copy;
+        uint32_t at;
+        if (mcd_test_rd_u32(f->data + skel + 4) != 1u || nodes < 2) continue;
+        apply_skel_edits(f, skel, nodes, 1, edits, sizeof edits / sizeof edits[0]);
+        /* Node 1's rest rotation made exactly (0 0 0 1), then off the unit sphere by a margin,
+         * so the unit rule is checked against a known quaternion. */
+        copy = mcd_test_copy(f->data, f->size);
+        at = skel + 16u + SKEL_NODE * nodes + SKEL_REST * 1u;
+        if (copy) {
+            static const float unit[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+            static const struct { float value; mcd_result want; const char* what; } w[] = {
+                {1.0f + 0.9e-5f, MCD_OK, "1 + 0.9e-5"},     {1.0f - 0.9e-5f, MCD_OK, "1 - 0.9e-5"},
+                {1.0f + 1.1e-5f, MCD_ERROR_MALFORMED, "1 + 1.1e-5"}, {1.0f - 1.1e-5f, MCD_ERROR_MALFORMED, "1 - 1.1e-5"},
+                {0.0f, MCD_ERROR_MALFORMED, "0"},           {-1.0f, MCD_OK, "-1"},
+            };
+            uint32_t c;
+            for (c = 0; c < 4; ++c) mcd_test_wr_u32(copy + at + 4u * c, bits(unit[c]));
+            mcd_test_fix_crc(copy, f->size);
+            CHECK_RESULT(mcd_validate(copy, f->size, 0), MCD_OK);
+            for (c = 0; c < sizeof w / sizeof w[0]; ++c) {
+                mcd_test_wr_u32(copy + at + 12u, bits(w[c].value));
+                mcd_test_fix_crc(copy, f->size);
+                CHECK_MSG(mcd_validate(copy, f->size, 0) == w[c].want, "%s: SKEL rest rotation (0 0 0 %s)", f->path, w[c].what);
+            }
+        }
+        free(copy);
+        ++*checked;
+    }
+}
+
 /* On the spline goldens, whose payloads do not depend on the rest pose or the hierarchy, so
  * that an accepted edit is accepted by the SKEL rules and the codec alike. */
 void test_skeleton_rules(void) {
     mcd_golden* g;
-    size_t n = mcd_test_load_golden(&g), i, checked = 0;
+    size_t n = mcd_test_load_golden(&g), i;
+    uint32_t checked = 0, rest_tables = 0;
     for (i = 0; i < n; ++i) {
         mcd_clip_info ci;
         if (mcd_get_clip_info(&g[i].asset, 0, &ci) != MCD_OK || ci.codec != MCD_CODEC_SPLINE) continue;
         check_skeleton_edits(&g[i].file);
+        check_rest_table_edits(&g[i].file, &rest_tables);
         checked++;
     }
     CHECK_MSG(checked > 0, "no spline golden asset");
+    CHECK_MSG(rest_tables > 0, "no spline golden asset with a SKEL rest table");
     mcd_test_free_golden(g, n);
 }
 

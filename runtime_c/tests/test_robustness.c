@@ -176,6 +176,26 @@ static uint32_t float_bits(float f) {
 
 /* The clip directory's rules (docs/FORMAT.md "CLIP", version 2), each broken alone in clip 0's
  * record with the checksum recomputed, so each answer comes from the rule itself. */
+/* Frame positions are binary32: a clip holds at most 2^24 frames. The record alone decides it
+ * (a prevalidated open, which reads no payload, refuses 2^24 + 1 frames with a matching
+ * duration and takes 2^24). */
+static void check_frame_limit(const mcd_test_file* f, uint32_t rec, float rate) {
+    static const uint32_t counts[2] = {(1u << 24) + 1u, 1u << 24};
+    uint32_t k;
+    for (k = 0; k < 2; ++k) {
+        edit e;
+        mcd_asset a;
+        if (!edit_begin(&e, f)) return;
+        mcd_test_wr_u32(e.bytes + rec + 24, counts[k]);
+        mcd_test_wr_u32(e.bytes + rec + 32, float_bits((float)((double)(counts[k] - 1u) / (double)rate)));
+        mcd_test_fix_crc(e.bytes, e.size);
+        CHECK_MSG(mcd_open(e.bytes, e.size, MCD_OPEN_PREVALIDATED, &a) == (k == 0 ? MCD_ERROR_MALFORMED : MCD_OK),
+                  "%s: frame_count %u under a prevalidated open", f->path, counts[k]);
+        CHECK_RESULT(mcd_validate(e.bytes, e.size, 0), MCD_ERROR_MALFORMED); /* the payload disagrees */
+        free(e.bytes);
+    }
+}
+
 void test_clip_directory_errors(void) {
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i;
@@ -225,6 +245,7 @@ void test_clip_directory_errors(void) {
         check_edit(f, rec + 40, 0xFFFFFFF0u, 4, 1, MCD_ERROR_MALFORMED, "scratch need 4 GB");
         /* Within the 1e-4 relative tolerance the duration is accepted. */
         check_edit(f, rec + 32, float_bits(duration * (1.0f + 2e-5f)), 4, 1, MCD_OK, "duration 2e-5 off");
+        check_frame_limit(f, rec, rate);
     }
     mcd_test_free_golden(g, n);
 }
