@@ -57,24 +57,13 @@ def pack_fields(values: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, int
     """Pack fields (each 0 ... 32 bits, ``values`` already within their widths) back to back,
     least significant bit first, into little-endian 64-bit words; returns (words, bit length).
 
-    Vectorised: every field lands in at most two words, so two scatter-ORs place them all."""
+    Compiled (``mcf_pack_fields``): the writers pack every track of every repair round, and a
+    loop over the fields is what packing is."""
+    from . import native  # the compiled helpers; bitpack itself stays importable without them
+
     v, w = np.broadcast_arrays(np.asarray(values, dtype=np.uint64), np.asarray(widths, dtype=np.int64))
-    v, w = v.ravel(), w.ravel()
-    if np.any(w < 0) or np.any(w > 32):
-        raise ValueError("field widths must be 0 ... 32")
-    total = int(w.sum())
-    words = np.zeros(total // 64 + 2, dtype=np.uint64)
-    if total == 0:
-        return words[:0], 0
-    start = np.concatenate(([0], np.cumsum(w)[:-1]))
-    keep = w > 0
-    v, w, start = v[keep], w[keep], start[keep]
-    idx = start >> 6
-    shift = (start & 63).astype(np.uint64)
-    np.bitwise_or.at(words, idx, v << shift)
-    spill = (start & 63) + w > 64
-    if spill.any():
-        np.bitwise_or.at(words, idx[spill] + 1, v[spill] >> (np.uint64(64) - shift[spill]))
+    v, w = np.ascontiguousarray(v.ravel()), np.ascontiguousarray(w.ravel())
+    words, total = native.pack_fields(v, w)
     return words[: (total + 63) // 64], total
 
 

@@ -91,7 +91,7 @@ class Track:
     quant_scale: float = 1.0
     keys: np.ndarray | None = None  # None: folded to a constant
     key_values: np.ndarray | None = None  # (K, d) before quantization
-    fit_error: np.ndarray | None = None   # (F,) error of the current fit per frame
+    recon: np.ndarray | None = None  # what the runtime decodes on every frame, once asked (_track_recon)
     ref_codes: np.ndarray | None = None   # int16 MRPs of ``ref`` as stored
     axis_codes: np.ndarray | None = None  # int16 axis as stored
     quantizer: Quantizer | None = None
@@ -218,16 +218,14 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
         dev = (np.linalg.norm(rest - track.target, axis=1) if track.kind in VECTOR_KINDS
                else R.quat_angle(track.target, rest))
         if np.all(dev <= track.budget):
-            track.keys, track.quantizer, track.constant = None, None, track.rest
-            track.fit_error = dev
+            track.keys, track.quantizer, track.constant, track.recon = None, None, track.rest, None
             return
     if track.kind != KIND_TWIST:
         const = _constant_value(track)
         recon = np.broadcast_to(const if track.kind in VECTOR_KINDS else np.zeros(3), (frames, 3))
         dev = err(recon)
         if np.all(dev <= track.budget):
-            track.keys, track.quantizer, track.constant = None, None, const
-            track.fit_error = dev
+            track.keys, track.quantizer, track.constant, track.recon = None, None, const, None
             return
     track.constant = None
     while True:
@@ -238,9 +236,8 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
                                         start=track.keys, grid=grid, split=track.split)
-        track.keys, track.key_values, track.quantizer = keys, key_values, qz
+        track.keys, track.key_values, track.quantizer, track.recon = keys, key_values, qz, None
         if ok:
-            track.fit_error = err(_track_values(track))
             return
         if track.quant_scale < 1e-4:
             raise ToleranceNotMet(f"node {track.node}: quantization cannot reach the budget")
@@ -549,6 +546,7 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
 def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> None:
     """Rebuild a rotation track's parameter values for a new local target."""
     fresh = _rotation_track_from(target, motion, node)
+    track.recon = None
     if fresh.kind != track.kind:
         track.keys = None  # the old keys belong to another parameterisation
     track.kind, track.values, track.target, track.ref, track.axis = (
@@ -564,13 +562,14 @@ def _track_values(track: Track) -> np.ndarray:
 
 def _track_recon(track: Track) -> np.ndarray:
     """What the runtime decodes for a track on every frame: local rotation, translation or
-    scale."""
+    scale (kept on the track until it is fitted again: a repair pass asks for every track's)."""
+    if track.recon is not None:
+        return track.recon
     frames = len(track.values)
     if track.keys is None:
-        if track.kind in VECTOR_KINDS:
-            return np.broadcast_to(track.constant, (frames, 3))
-        return np.broadcast_to(track.constant, (frames, 4))
-    values = _track_values(track)
-    if track.kind in VECTOR_KINDS:
-        return values
-    return _track_rotations(track, values)
+        recon = np.broadcast_to(track.constant, (frames, 3 if track.kind in VECTOR_KINDS else 4))
+    else:
+        values = _track_values(track)
+        recon = values if track.kind in VECTOR_KINDS else _track_rotations(track, values)
+    track.recon = recon
+    return recon

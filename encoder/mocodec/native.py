@@ -3,7 +3,8 @@
 
 They are the hot loops of the key-frame engine: key placement for one curve
 (:func:`mocodec.curves.fit_keys`, whose numpy version is the reference they are tested
-against) and the per-frame Wahba fits of the compensation (:mod:`mocodec.keyframes`).
+against), the per-frame Wahba fits of the compensation (:mod:`mocodec.keyframes`), and the
+bit packing of the payload writers (:func:`mocodec.bitpack.pack_fields`).
 Compiled rather than vectorised because both are loops whose next step depends on the last
 (keys placed, then only the changed segments measured again; Jacobi sweeps), which numpy can
 only do by redoing whole arrays.
@@ -102,3 +103,16 @@ def wahba(v: np.ndarray, u: np.ndarray, w: np.ndarray, hint: np.ndarray) -> np.n
     if lib.mcf_wahba(frames, count, _ptr(v), _ptr(u), _ptr(w), _ptr(hint), _ptr(out)) != 0:
         raise ValueError("mcf_wahba: bad arguments")
     return out
+
+
+def pack_fields(values: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, int]:
+    """Fields ``values`` (uint64) of ``widths`` (int64, 0 ... 32) bits packed least significant
+    bit first into 64-bit words (``mcf_pack_fields``): (words, bit length)."""
+    values = np.ascontiguousarray(values, dtype=np.uint64)
+    widths = np.ascontiguousarray(widths, dtype=np.int64)
+    words = np.zeros(int(widths.sum()) // 64 + 2 if len(widths) else 2, dtype=np.uint64)
+    total = lib.mcf_pack_fields(_ptr(values, "uint64_t *"), _ptr(widths, "int64_t *"), len(values),
+                                _ptr(words, "uint64_t *"))
+    if total < 0:
+        raise ValueError("field widths must be 0 ... 32")
+    return words, int(total)

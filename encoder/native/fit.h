@@ -49,4 +49,9 @@ int32_t mcf_evaluate(const mcf_curve* curve, const int64_t* keys, int64_t n_keys
 int32_t mcf_wahba(int64_t frames, int32_t count, const double* v, const double* u, const double* w,
                   const double* hint, double* out);
 
+/* Pack ``n`` fields (``widths`` 0 ... 32 bits, ``values`` within them) back to back, least
+ * significant bit first, into ``words`` (zeroed, at least total / 64 + 2 of them). Returns the
+ * bit length, or -1 when a width is out of range. */
+int64_t mcf_pack_fields(const uint64_t* values, const int64_t* widths, int64_t n, uint64_t* words);
+
 #endif
