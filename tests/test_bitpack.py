@@ -1,5 +1,6 @@
-"""Bit packing (mocodec.bitpack): the compiled pack_fields against BitWriter's one-entry-per-bit
-numpy packing and read_bits, fields of every width 0 ... 32 across word boundaries."""
+"""Bit packing (mocodec.bitpack): the compiled pack_fields and BitWriter against a Python big
+integer built field by field, and read_bits, fields of every width 0 ... 32 across word
+boundaries."""
 from __future__ import annotations
 
 import numpy as np
@@ -14,9 +15,15 @@ def test_pack_fields_is_bitwriters_packing(seed):
     widths = rng.integers(0, 33, size=2000)
     widths[rng.integers(0, 2000, size=200)] = 0
     values = rng.integers(0, 2**32, size=2000, dtype=np.uint64) & ((np.uint64(1) << widths.astype(np.uint64)) - np.uint64(1))
+    acc, bit = 0, 0
+    for v, n in zip(values.tolist(), widths.tolist()):
+        acc |= int(v) << bit
+        bit += int(n)
+    want = acc.to_bytes((bit + 7) // 8, "little")
     w = BitWriter()
-    w.write(values, widths)
-    want = w.getvalue()
+    w.write(values[:1000], widths[:1000])
+    w.write(values[1000:], widths[1000:])
+    assert w.bit_length == bit and w.getvalue(3) == want + bytes(3)
     words, total = pack_fields(values, widths)
     assert total == int(widths.sum())
     got = words.astype("<u8").tobytes()[: (total + 7) // 8]

@@ -5,7 +5,7 @@ import numpy as np
 
 
 class BitWriter:
-    """Collects (value, width) fields, then packs them all at once with numpy."""
+    """Collects (value, width) fields, then packs them all at once (:func:`pack_fields`)."""
 
     def __init__(self) -> None:
         self._values: list[np.ndarray] = []
@@ -31,16 +31,9 @@ class BitWriter:
         nbytes = (self.bit_length + 7) // 8 + tail_bytes
         if not self._values:
             return bytes(nbytes)
-        values = np.concatenate(self._values)
-        widths = np.concatenate(self._widths)
-        starts = np.concatenate(([0], np.cumsum(widths)[:-1]))
-        # One entry per bit: which field, which bit of it.
-        field = np.repeat(np.arange(len(widths)), widths)
-        bit_in_field = np.arange(len(field)) - np.repeat(starts, widths)
-        bits = ((values[field] >> bit_in_field.astype(np.uint64)) & np.uint64(1)).astype(np.uint8)
-        out = np.zeros(nbytes * 8, dtype=np.uint8)
-        out[: len(bits)] = bits
-        return np.packbits(out, bitorder="little").tobytes()
+        words, total = pack_fields(np.concatenate(self._values), np.concatenate(self._widths))
+        data = words.astype("<u8").tobytes()[: (total + 7) // 8]
+        return data + bytes(nbytes - len(data))
 
 
 def read_bits(data: bytes, bit: int, width: int) -> int:
