@@ -14,7 +14,7 @@ import numpy as np
 
 from . import __version__, codecs
 from .container import AssetBuilder, ClipEntry
-from .kinematics import motion_world
+from .kinematics import halfway_world, motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -70,15 +70,24 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
-    decoded by the C runtime from a one-clip asset."""
+    decoded by the C runtime from a one-clip asset; with ``halfway=True`` the error half-way
+    between frames (F - 1, N) instead, sampled by the runtime at x + 1/2 against the
+    original's own half-way pose (:func:`mocodec.kinematics.halfway_world`)."""
     from .runtime import Asset, decode_world  # the binding, needed only once encoding runs
 
     originals = [motion_world(m)[1] for m in motions]
+    halfway_originals: dict[int, np.ndarray] = {}  # computed when a codec first asks
 
-    def check(i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
-        data = _single_clip_asset(motions[i], cm_per_unit[i], codec, payload, prefix)
-        _, pos = decode_world(Asset(data), 0)
-        return np.linalg.norm(pos - originals[i], axis=-1)
+    def check(i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
+        asset = Asset(_single_clip_asset(motions[i], cm_per_unit[i], codec, payload, prefix))
+        if not halfway:
+            _, pos = decode_world(asset, 0)
+            return np.linalg.norm(pos - originals[i], axis=-1)
+        if i not in halfway_originals:
+            halfway_originals[i] = halfway_world(motions[i])[0]
+        ref = halfway_originals[i]
+        _, pos = asset.sample_frames(0, np.arange(len(ref), dtype=np.float64) + 0.5, world=True)
+        return np.linalg.norm(pos - ref, axis=-1)
 
     return check
 

@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import forward_kinematics
+from .kinematics import forward_kinematics, halfway_world, held_intervals
 from .motion import Motion
 from .quantize import Quantizer
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
@@ -56,6 +56,13 @@ class KeyframeSettings:
         Rounds of check-through-the-runtime and budget tightening before giving up.
     shell_cm : float, default 3.0
         Every rotation is also held to a virtual vertex this far from its joint.
+    halfway_factor : float, default 0
+        Hold the error half-way between frames too, to this multiple of the tolerance (0:
+        off, frames only): each track's curve is fitted to its target's own half-way path
+        (slerp, lerp) as well, and the runtime's samples at x + 1/2 are checked against the
+        original's half-way pose and repaired like frames (:class:`HalfwayHold`). Intervals
+        where the capture jumps, and their neighbours
+        (:func:`mocodec.kinematics.held_intervals`), are not held.
     """
 
     tolerance: Tolerance
@@ -63,6 +70,7 @@ class KeyframeSettings:
     budget_scales: tuple[float, ...] = (6.0,)
     max_repairs: int = 60
     shell_cm: float = 3.0
+    halfway_factor: float = 0.0
 
     def __post_init__(self) -> None:
         self.quant_fraction = float(self.quant_fraction)
@@ -72,6 +80,9 @@ class KeyframeSettings:
             self.budget_scales = (float(self.budget_scales),)
         self.budget_scales = tuple(float(x) for x in self.budget_scales)
         self.max_repairs = int(self.max_repairs)
+        self.halfway_factor = float(self.halfway_factor)
+        if not self.halfway_factor >= 0.0:
+            raise ValueError(f"halfway_factor must be 0 (off) or positive, got {self.halfway_factor}")
 
 
 @dataclass
@@ -98,6 +109,7 @@ class Track:
     constant: np.ndarray | None = None
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
+    half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (inf: not held)
 
     @property
     def is_rotation(self) -> bool:
@@ -206,13 +218,29 @@ def _constant_value(track: Track) -> np.ndarray:
     return track.ref  # exactly what the runtime expands the stored codes to
 
 
+def halfway_target(track: Track) -> np.ndarray:
+    """A track's target half-way between frames (F-1, 4 | 3): rotations by slerp at one half
+    (the normalised sum on one hemisphere), translations and scales by their mean."""
+    a, b = track.target[:-1], track.target[1:]
+    if track.kind in VECTOR_KINDS:
+        return 0.5 * (a + b)
+    mid = a + np.where((np.sum(a * b, axis=1) < 0.0)[:, None], -b, b)
+    return mid / np.linalg.norm(mid, axis=1, keepdims=True)
+
+
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
-    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``)."""
+    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
+    ``half_budget`` is held to its target's half-way path too (constants are judged on the
+    frames: half-way, a constant is as far from the target as on one of the two frames at
+    most)."""
     err = _track_error(track)
     frames = len(track.values)
+    half_budget = track.half_budget if frames > 1 else None
+    if half_budget is not None:
+        err.half_target = halfway_target(track)
     if track.rest is not None:  # the rest value costs nothing: take it when within budget
         rest = np.broadcast_to(track.rest, track.target.shape)
         dev = (np.linalg.norm(rest - track.target, axis=1) if track.kind in VECTOR_KINDS
@@ -235,7 +263,8 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
-                                        start=track.keys, grid=grid, split=track.split)
+                                        start=track.keys, grid=grid, split=track.split,
+                                        half_budget=half_budget)
         track.keys, track.key_values, track.quantizer, track.recon = keys, key_values, qz, None
         if ok:
             return
@@ -474,6 +503,8 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         budgets0 = initial_budgets(comp.reach, self.tol_units, scale)
+        half = (HalfwayHold(self.motion, self.cm_per_unit, self.settings.halfway_factor, self.tol_units)
+                if self.settings.halfway_factor > 0.0 and self.frames > 1 else None)
         tracks: dict[tuple[int, int], Track] = {}
         order = []
         for i, part, b in zip(comp.track_nodes, comp.track_parts, budgets0):
@@ -496,6 +527,8 @@ class KeyframeFitter:
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
+            if half is not None:
+                t.half_budget = np.where(half.smooth, half.factor * float(b), np.inf)
             t.split = self.split
             tracks[(i, part)] = t
             order.append((i, part))
@@ -505,20 +538,78 @@ class KeyframeFitter:
                            comp.reach.is_rotation[reach_rows])
         self._decoded = None
         self._fit_pass(tracks, set(order))
+        frames = self.frames
 
         def repair(errors: np.ndarray) -> None:
-            changed = tighten([tracks[k].budget for k in order], reach, errors, self.tol_units)
+            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
+            if half is not None:
+                changed |= set(tighten([tracks[k].half_budget for k in order], reach,
+                                       half.held(errors[frames:]), half.tolerance))
             self._fit_pass(tracks, {order[c] for c in changed})
 
-        attempt = meet_tolerance(lambda: self.payload(list(tracks.values())), check, self.tol_units,
+        tolerance = self.tol_units if half is None else half.stacked(self.tol_units)
+        attempt = meet_tolerance(lambda: self.payload(list(tracks.values())),
+                                 check if half is None else half.check(check), tolerance,
                                  repair, self.settings.max_repairs)
         if not attempt.met:
-            raise ToleranceNotMet(f"scale {scale}: still {attempt.worst(self.tol_units):.3f}x over the "
+            raise ToleranceNotMet(f"scale {scale}: still {attempt.worst(tolerance):.3f}x over the "
                                   f"tolerance after {self.settings.max_repairs} repairs")
         keys = sum(len(t.keys) for t in tracks.values() if t.keys is not None)
-        return ClipResult(attempt.payload, attempt.errors_units,
-                          {"keys": keys, "tracks": len(tracks), "repairs": attempt.adjustments,
-                           "budget_scale": scale})
+        stats = {"keys": keys, "tracks": len(tracks), "repairs": attempt.adjustments, "budget_scale": scale}
+        if half is not None:
+            stats["halfway_released"] = int(half.released.sum())
+        return ClipResult(attempt.payload, attempt.errors_units[:frames], stats)
+
+
+class HalfwayHold:
+    """The tolerance half-way between frames (:attr:`KeyframeSettings.halfway_factor`): which
+    intervals are held (the capture moves smoothly through them), the tolerance there per
+    node, and the clip check extended to the runtime's samples at x + 1/2.
+
+    The frames are the promise; half-way is held as far as repairs reach. An interval still
+    over after :attr:`RELEASE_AFTER` repairs is released (no longer measured, counted in
+    :attr:`released`) rather than failing the clip: there the curve through the frames'
+    targets does not follow the original's own half-way path (finger markers jittering 30
+    degrees in a frame, CMU 06_13), and tightening its budgets only moves the error. After
+    :attr:`HOLD_ROUNDS` checks every interval is released, so that the frames' repairs
+    converge as they do without the hold."""
+
+    RELEASE_AFTER = 2
+    HOLD_ROUNDS = 10
+
+    def __init__(self, motion: Motion, cm_per_unit: float, factor: float, tol_units: np.ndarray) -> None:
+        _, step, turn = halfway_world(motion)
+        self.smooth = held_intervals(step, turn, cm_per_unit)
+        self.factor = factor
+        self.tolerance = factor * tol_units
+        self.fails = np.zeros(len(self.smooth), dtype=np.int64)
+        self.released = np.zeros(len(self.smooth), dtype=bool)
+        self.rounds = 0
+
+    def held(self, half_errors: np.ndarray) -> np.ndarray:
+        """Half-way errors (F-1, N) with the intervals not held zeroed."""
+        return np.where((self.smooth & ~self.released)[:, None], half_errors, 0.0)
+
+    def stacked(self, tol_units: np.ndarray) -> np.ndarray:
+        """Per row of :meth:`check`'s errors (2F-1, N): the tolerance on frames, then half-way."""
+        frames = len(self.smooth) + 1
+        return np.concatenate((np.broadcast_to(tol_units, (frames, len(tol_units))),
+                               np.broadcast_to(self.tolerance, (frames - 1, len(tol_units)))))
+
+    def check(self, check: ClipCheck) -> ClipCheck:
+        """``check`` on the frames, then on the held half-way samples (``check(payload,
+        halfway=True)``, zero where not held), as one (2F-1, N) array; counts the repairs
+        each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
+        def both(payload: bytes) -> np.ndarray:
+            self.rounds += 1
+            half = self.held(check(payload, halfway=True))
+            over = np.any(half > self.tolerance[None, :], axis=1)
+            self.fails += over
+            self.released |= self.fails > self.RELEASE_AFTER
+            if self.rounds > self.HOLD_ROUNDS:
+                self.released |= over
+            return np.concatenate((check(payload), self.held(half)))
+        return both
 
 
 def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, check: ClipCheck,

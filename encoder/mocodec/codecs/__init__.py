@@ -201,7 +201,7 @@ def encode_each_clip(encode_clip: Callable[..., ClipResult], motions: list[Motio
     ``prefix``) and collect payloads and stats."""
     out = CodecOutput(payloads=[])
     for i, (m, cm) in enumerate(zip(motions, cm_per_unit)):
-        r = encode_clip(m, cm, settings, lambda payload, i=i: check(i, payload, prefix))
+        r = encode_clip(m, cm, settings, lambda payload, i=i, **how: check(i, payload, prefix, **how))
         out.payloads.append(r.payload)
         out.stats.append({**r.stats, "encode_seconds": r.seconds})
         if progress:
