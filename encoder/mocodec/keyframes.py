@@ -571,8 +571,8 @@ class HalfwayHold:
     :attr:`released`) rather than failing the clip: there the curve through the frames'
     targets does not follow the original's own half-way path (finger markers jittering 30
     degrees in a frame, CMU 06_13), and tightening its budgets only moves the error. After
-    :attr:`HOLD_ROUNDS` checks every interval is released, so that the frames' repairs
-    converge as they do without the hold."""
+    :attr:`HOLD_ROUNDS` checks an interval over is released at once, so that the frames'
+    repairs converge as they do without the hold (the tracks' own half-way budgets stay)."""
 
     RELEASE_AFTER = 2
     HOLD_ROUNDS = 10
