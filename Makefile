@@ -21,7 +21,7 @@ SHARED ?= ../shared
 
 .PHONY: demo test web unity-plugins venv test-c test-python test-engines bench bench-rd clean
 
-$(VENV)/.installed: encoder/pyproject.toml bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
+$(VENV)/.installed: encoder/pyproject.toml encoder/build_native.py $(wildcard encoder/native/*.c encoder/native/*.h) bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@$(PY) -m pip install -q --upgrade pip
 	@$(PY) -m pip install -q ./bindings/python

@@ -1,5 +1,5 @@
-"""Builds the runtime binding's cffi extension for the one-step install; metadata lives in
-pyproject.toml."""
+"""Builds the cffi extensions for the one-step install (the runtime binding and the encoder's
+compiled fitting helpers); metadata lives in pyproject.toml."""
 from setuptools import setup
 
-setup(cffi_modules=["bindings/python/build_ffi.py:ffibuilder"])
+setup(cffi_modules=["bindings/python/build_ffi.py:ffibuilder", "encoder/build_native.py:ffibuilder"])

@@ -5,7 +5,7 @@ import numpy as np
 
 
 class BitWriter:
-    """Collects (value, width) fields, then packs them all at once with numpy."""
+    """Collects (value, width) fields, then packs them all at once (:func:`pack_fields`)."""
 
     def __init__(self) -> None:
         self._values: list[np.ndarray] = []
@@ -31,16 +31,9 @@ class BitWriter:
         nbytes = (self.bit_length + 7) // 8 + tail_bytes
         if not self._values:
             return bytes(nbytes)
-        values = np.concatenate(self._values)
-        widths = np.concatenate(self._widths)
-        starts = np.concatenate(([0], np.cumsum(widths)[:-1]))
-        # One entry per bit: which field, which bit of it.
-        field = np.repeat(np.arange(len(widths)), widths)
-        bit_in_field = np.arange(len(field)) - np.repeat(starts, widths)
-        bits = ((values[field] >> bit_in_field.astype(np.uint64)) & np.uint64(1)).astype(np.uint8)
-        out = np.zeros(nbytes * 8, dtype=np.uint8)
-        out[: len(bits)] = bits
-        return np.packbits(out, bitorder="little").tobytes()
+        words, total = pack_fields(np.concatenate(self._values), np.concatenate(self._widths))
+        data = words.astype("<u8").tobytes()[: (total + 7) // 8]
+        return data + bytes(nbytes - len(data))
 
 
 def read_bits(data: bytes, bit: int, width: int) -> int:
@@ -57,24 +50,13 @@ def pack_fields(values: np.ndarray, widths: np.ndarray) -> tuple[np.ndarray, int
     """Pack fields (each 0 ... 32 bits, ``values`` already within their widths) back to back,
     least significant bit first, into little-endian 64-bit words; returns (words, bit length).
 
-    Vectorised: every field lands in at most two words, so two scatter-ORs place them all."""
+    Compiled (``mcf_pack_fields``): the writers pack every track of every repair round, and a
+    loop over the fields is what packing is."""
+    from . import native  # the compiled helpers; bitpack itself stays importable without them
+
     v, w = np.broadcast_arrays(np.asarray(values, dtype=np.uint64), np.asarray(widths, dtype=np.int64))
-    v, w = v.ravel(), w.ravel()
-    if np.any(w < 0) or np.any(w > 32):
-        raise ValueError("field widths must be 0 ... 32")
-    total = int(w.sum())
-    words = np.zeros(total // 64 + 2, dtype=np.uint64)
-    if total == 0:
-        return words[:0], 0
-    start = np.concatenate(([0], np.cumsum(w)[:-1]))
-    keep = w > 0
-    v, w, start = v[keep], w[keep], start[keep]
-    idx = start >> 6
-    shift = (start & 63).astype(np.uint64)
-    np.bitwise_or.at(words, idx, v << shift)
-    spill = (start & 63) + w > 64
-    if spill.any():
-        np.bitwise_or.at(words, idx[spill] + 1, v[spill] >> (np.uint64(64) - shift[spill]))
+    v, w = np.ascontiguousarray(v.ravel()), np.ascontiguousarray(w.ravel())
+    words, total = native.pack_fields(v, w)
     return words[: (total + 63) // 64], total
 
 

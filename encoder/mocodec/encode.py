@@ -15,7 +15,7 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import motion_world
+from .kinematics import halfway_world, motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -71,7 +71,10 @@ def _single_clip_asset(motion: Motion, cm_per_unit: float, codec: str, payload: 
 
 
 class RuntimeCheck:
-    """``check(i, payload, prefix=b"")``: clip ``i``'s world error (F, N) in file units, decoded
+    """``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file
+    units (half-way between frames (F - 1, N) with ``halfway``), decoded by the C runtime from a
+    one-clip asset. It pickles without its cached world positions, and :meth:`one_clip` is the
+    check of one clip alone, small enough to send to a worker process."""``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file units, decoded
     by the C runtime from a one-clip asset. It pickles without its cached world positions, and
     :meth:`one_clip` is the check of one clip alone, small enough to send to a worker process."""
 
@@ -80,14 +83,21 @@ class RuntimeCheck:
 
         self.motions, self.cm_per_unit, self.codec = list(motions), list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
+        self._halfway: dict[int, np.ndarray] = {}  # computed when a codec first asks
 
-    def __call__(self, i: int, payload: bytes, prefix: bytes = b"") -> np.ndarray:
+    def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
         from .runtime import Asset, decode_world
 
+        asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
+        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose
+            if i not in self._halfway:
+                self._halfway[i] = halfway_world(self.motions[i])[0]
+            ref = self._halfway[i]
+            _, pos = asset.sample_frames(0, np.arange(len(ref), dtype=np.float64) + 0.5, world=True)
+            return np.linalg.norm(pos - ref, axis=-1)
         if i not in self._originals:
             self._originals[i] = motion_world(self.motions[i])[1]
-        data = _single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix)
-        _, pos = decode_world(Asset(data), 0)
+        _, pos = decode_world(asset, 0)
         return np.linalg.norm(pos - self._originals[i], axis=-1)
 
     def one_clip(self, i: int, prefix: bytes = b"") -> Callable[[bytes], np.ndarray]:
@@ -96,12 +106,14 @@ class RuntimeCheck:
                                  prefix=prefix)
 
     def __getstate__(self) -> dict[str, Any]:
-        return {**self.__dict__, "_originals": {}}
+        return {**self.__dict__, "_originals": {}, "_halfway": {}}
 
 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
-    decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`)."""
+    decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`); with ``halfway=True``
+    the error half-way between frames (F - 1, N) instead, sampled by the runtime at x + 1/2
+    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_world`)."""
     return RuntimeCheck(motions, cm_per_unit, codec)
 
 

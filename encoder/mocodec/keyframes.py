@@ -20,19 +20,19 @@ from typing import Callable
 
 import numpy as np
 
+from . import native
 from . import rotations as R
 from .codecs import ClipResult
-from .curves import catmull_rom, fit_keys
-from .kinematics import forward_kinematics
+from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
+                     catmull_rom, fit_keys)
+from .kinematics import forward_kinematics, halfway_world, held_intervals
 from .motion import Motion
 from .quantize import Quantizer
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         initial_budgets, meet_tolerance, tighten)
 
-KIND_MRP, KIND_TWIST, KIND_TRANSLATION, KIND_SCALE = 1, 2, 3, 4
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
-VECTOR_KINDS = (KIND_TRANSLATION, KIND_SCALE)  # stored like translations: three components
 TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
 
 
@@ -56,6 +56,13 @@ class KeyframeSettings:
         Rounds of check-through-the-runtime and budget tightening before giving up.
     shell_cm : float, default 3.0
         Every rotation is also held to a virtual vertex this far from its joint.
+    halfway_factor : float, default 0
+        Hold the error half-way between frames too, to this multiple of the tolerance (0:
+        off, frames only): each track's curve is fitted to its target's own half-way path
+        (slerp, lerp) as well, and the runtime's samples at x + 1/2 are checked against the
+        original's half-way pose and repaired like frames (:class:`HalfwayHold`). Intervals
+        where the capture jumps, and their neighbours
+        (:func:`mocodec.kinematics.held_intervals`), are not held.
     """
 
     tolerance: Tolerance
@@ -63,6 +70,7 @@ class KeyframeSettings:
     budget_scales: tuple[float, ...] = (6.0,)
     max_repairs: int = 60
     shell_cm: float = 3.0
+    halfway_factor: float = 0.0
 
     def __post_init__(self) -> None:
         self.quant_fraction = float(self.quant_fraction)
@@ -72,6 +80,9 @@ class KeyframeSettings:
             self.budget_scales = (float(self.budget_scales),)
         self.budget_scales = tuple(float(x) for x in self.budget_scales)
         self.max_repairs = int(self.max_repairs)
+        self.halfway_factor = float(self.halfway_factor)
+        if not self.halfway_factor >= 0.0:
+            raise ValueError(f"halfway_factor must be 0 (off) or positive, got {self.halfway_factor}")
 
 
 @dataclass
@@ -91,13 +102,14 @@ class Track:
     quant_scale: float = 1.0
     keys: np.ndarray | None = None  # None: folded to a constant
     key_values: np.ndarray | None = None  # (K, d) before quantization
-    fit_error: np.ndarray | None = None   # (F,) error of the current fit per frame
+    recon: np.ndarray | None = None  # what the runtime decodes on every frame, once asked (_track_recon)
     ref_codes: np.ndarray | None = None   # int16 MRPs of ``ref`` as stored
     axis_codes: np.ndarray | None = None  # int16 axis as stored
     quantizer: Quantizer | None = None
     constant: np.ndarray | None = None
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
+    half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (inf: not held)
 
     @property
     def is_rotation(self) -> bool:
@@ -177,18 +189,13 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
 
 def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
     """Local rotations (F, 4) a track's parameter values decode to."""
-    if track.kind == KIND_MRP:
-        return R.quat_multiply(track.ref, R.quat_from_mrp(values))
-    tw = R.quat_from_axis_angle(track.axis, values[:, 0])
-    return R.quat_multiply(tw, R.quat_multiply(track.ref, R.quat_from_mrp(values[:, 1:])))
+    return _track_error(track).decoded(values)
 
 
-def _track_error(track: Track) -> Callable[[np.ndarray], np.ndarray]:
+def _track_error(track: Track) -> CurveTarget:
     """Per-frame error of a reconstruction: rotation angle (rad), translation distance or
     scale difference."""
-    if track.kind in VECTOR_KINDS:
-        return lambda recon: np.linalg.norm(recon - track.target, axis=1)
-    return lambda recon: R.quat_angle(track.target, _track_rotations(track, recon))
+    return CurveTarget(track.kind, track.target, track.ref, track.axis)
 
 
 # ------------------------------------------------------------------------ fitting
@@ -211,28 +218,42 @@ def _constant_value(track: Track) -> np.ndarray:
     return track.ref  # exactly what the runtime expands the stored codes to
 
 
+def halfway_target(track: Track) -> np.ndarray:
+    """A track's target half-way between frames (F-1, 4 | 3): rotations by slerp at one half
+    (the normalised sum on one hemisphere), translations and scales by their mean."""
+    a, b = track.target[:-1], track.target[1:]
+    if track.kind in VECTOR_KINDS:
+        return 0.5 * (a + b)
+    mid = a + np.where((np.sum(a * b, axis=1) < 0.0)[:, None], -b, b)
+    return mid / np.linalg.norm(mid, axis=1, keepdims=True)
+
+
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
-    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``)."""
+    ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
+    ``half_budget`` is held to its target's half-way path too (constants are judged on the
+    frames: half-way, a constant is as far from the target as on one of the two frames at
+    most)."""
     err = _track_error(track)
     frames = len(track.values)
+    half_budget = track.half_budget if frames > 1 else None
+    if half_budget is not None:
+        err.half_target = halfway_target(track)
     if track.rest is not None:  # the rest value costs nothing: take it when within budget
         rest = np.broadcast_to(track.rest, track.target.shape)
         dev = (np.linalg.norm(rest - track.target, axis=1) if track.kind in VECTOR_KINDS
                else R.quat_angle(track.target, rest))
         if np.all(dev <= track.budget):
-            track.keys, track.quantizer, track.constant = None, None, track.rest
-            track.fit_error = dev
+            track.keys, track.quantizer, track.constant, track.recon = None, None, track.rest, None
             return
     if track.kind != KIND_TWIST:
         const = _constant_value(track)
         recon = np.broadcast_to(const if track.kind in VECTOR_KINDS else np.zeros(3), (frames, 3))
         dev = err(recon)
         if np.all(dev <= track.budget):
-            track.keys, track.quantizer, track.constant = None, None, const
-            track.fit_error = dev
+            track.keys, track.quantizer, track.constant, track.recon = None, None, const, None
             return
     track.constant = None
     while True:
@@ -242,10 +263,10 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
         keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
-                                        start=track.keys, grid=grid, split=track.split)
-        track.keys, track.key_values, track.quantizer = keys, key_values, qz
+                                        start=track.keys, grid=grid, split=track.split,
+                                        half_budget=half_budget)
+        track.keys, track.key_values, track.quantizer, track.recon = keys, key_values, qz, None
         if ok:
-            track.fit_error = err(_track_values(track))
             return
         if track.quant_scale < 1e-4:
             raise ToleranceNotMet(f"node {track.node}: quantization cannot reach the budget")
@@ -282,19 +303,6 @@ def node_modes(motion: Motion, tracks: list[Track]) -> tuple[list[tuple[int, int
                 constants.extend(t.constant.tolist())
         rows.append((modes[0], modes[1], modes[2], where[0], where[1], where[2]))
     return rows, constants, animated
-
-
-def _wahba(v: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Per frame, the rotation Q minimising sum_k w_k |Q v_k - u_k|^2 (SVD solution).
-
-    ``v``, ``u``: (F, K, 3); ``w``: (K,). Returns quaternions (F, 4)."""
-    b = np.einsum("k,fki,fkj->fij", w, u, v)
-    uu, _, vt = np.linalg.svd(b)
-    d = np.sign(np.linalg.det(uu @ vt))
-    m = np.ones((len(b), 3))
-    m[:, 2] = d
-    rot = uu @ (m[:, :, None] * vt)
-    return R.quat_from_matrix(rot)
 
 
 class Compensation:
@@ -399,8 +407,7 @@ class Compensation:
             vs.append(np.broadcast_to(e, (self.frames, 3)))
             us.append(R.quat_rotate(orig, e))
             ws.append(0.25 if self.aim[i] else 1.0)
-        world = _wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws))
-        world = R.quat_make_continuous(np.where((np.sum(world * orig, axis=1) < 0)[:, None], -world, world))
+        world = R.quat_make_continuous(native.wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws), orig))
         if parent_rot is None:
             return world
         return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
@@ -496,6 +503,8 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         budgets0 = initial_budgets(comp.reach, self.tol_units, scale)
+        half = (HalfwayHold(self.motion, self.cm_per_unit, self.settings.halfway_factor, self.tol_units)
+                if self.settings.halfway_factor > 0.0 and self.frames > 1 else None)
         tracks: dict[tuple[int, int], Track] = {}
         order = []
         for i, part, b in zip(comp.track_nodes, comp.track_parts, budgets0):
@@ -518,6 +527,8 @@ class KeyframeFitter:
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
+            if half is not None:
+                t.half_budget = np.where(half.smooth, half.factor * float(b), np.inf)
             t.split = self.split
             tracks[(i, part)] = t
             order.append((i, part))
@@ -527,20 +538,78 @@ class KeyframeFitter:
                            comp.reach.is_rotation[reach_rows])
         self._decoded = None
         self._fit_pass(tracks, set(order))
+        frames = self.frames
 
         def repair(errors: np.ndarray) -> None:
-            changed = tighten([tracks[k].budget for k in order], reach, errors, self.tol_units)
+            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
+            if half is not None:
+                changed |= set(tighten([tracks[k].half_budget for k in order], reach,
+                                       half.held(errors[frames:]), half.tolerance))
             self._fit_pass(tracks, {order[c] for c in changed})
 
-        attempt = meet_tolerance(lambda: self.payload(list(tracks.values())), check, self.tol_units,
+        tolerance = self.tol_units if half is None else half.stacked(self.tol_units)
+        attempt = meet_tolerance(lambda: self.payload(list(tracks.values())),
+                                 check if half is None else half.check(check), tolerance,
                                  repair, self.settings.max_repairs)
         if not attempt.met:
-            raise ToleranceNotMet(f"scale {scale}: still {attempt.worst(self.tol_units):.3f}x over the "
+            raise ToleranceNotMet(f"scale {scale}: still {attempt.worst(tolerance):.3f}x over the "
                                   f"tolerance after {self.settings.max_repairs} repairs")
         keys = sum(len(t.keys) for t in tracks.values() if t.keys is not None)
-        return ClipResult(attempt.payload, attempt.errors_units,
-                          {"keys": keys, "tracks": len(tracks), "repairs": attempt.adjustments,
-                           "budget_scale": scale})
+        stats = {"keys": keys, "tracks": len(tracks), "repairs": attempt.adjustments, "budget_scale": scale}
+        if half is not None:
+            stats["halfway_released"] = int(half.released.sum())
+        return ClipResult(attempt.payload, attempt.errors_units[:frames], stats)
+
+
+class HalfwayHold:
+    """The tolerance half-way between frames (:attr:`KeyframeSettings.halfway_factor`): which
+    intervals are held (the capture moves smoothly through them), the tolerance there per
+    node, and the clip check extended to the runtime's samples at x + 1/2.
+
+    The frames are the promise; half-way is held as far as repairs reach. An interval still
+    over after :attr:`RELEASE_AFTER` repairs is released (no longer measured, counted in
+    :attr:`released`) rather than failing the clip: there the curve through the frames'
+    targets does not follow the original's own half-way path (finger markers jittering 30
+    degrees in a frame, CMU 06_13), and tightening its budgets only moves the error. After
+    :attr:`HOLD_ROUNDS` checks an interval over is released at once, so that the frames'
+    repairs converge as they do without the hold (the tracks' own half-way budgets stay)."""
+
+    RELEASE_AFTER = 2
+    HOLD_ROUNDS = 10
+
+    def __init__(self, motion: Motion, cm_per_unit: float, factor: float, tol_units: np.ndarray) -> None:
+        _, step, turn = halfway_world(motion)
+        self.smooth = held_intervals(step, turn, cm_per_unit)
+        self.factor = factor
+        self.tolerance = factor * tol_units
+        self.fails = np.zeros(len(self.smooth), dtype=np.int64)
+        self.released = np.zeros(len(self.smooth), dtype=bool)
+        self.rounds = 0
+
+    def held(self, half_errors: np.ndarray) -> np.ndarray:
+        """Half-way errors (F-1, N) with the intervals not held zeroed."""
+        return np.where((self.smooth & ~self.released)[:, None], half_errors, 0.0)
+
+    def stacked(self, tol_units: np.ndarray) -> np.ndarray:
+        """Per row of :meth:`check`'s errors (2F-1, N): the tolerance on frames, then half-way."""
+        frames = len(self.smooth) + 1
+        return np.concatenate((np.broadcast_to(tol_units, (frames, len(tol_units))),
+                               np.broadcast_to(self.tolerance, (frames - 1, len(tol_units)))))
+
+    def check(self, check: ClipCheck) -> ClipCheck:
+        """``check`` on the frames, then on the held half-way samples (``check(payload,
+        halfway=True)``, zero where not held), as one (2F-1, N) array; counts the repairs
+        each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
+        def both(payload: bytes) -> np.ndarray:
+            self.rounds += 1
+            half = self.held(check(payload, halfway=True))
+            over = np.any(half > self.tolerance[None, :], axis=1)
+            self.fails += over
+            self.released |= self.fails > self.RELEASE_AFTER
+            if self.rounds > self.HOLD_ROUNDS:
+                self.released |= over
+            return np.concatenate((check(payload), self.held(half)))
+        return both
 
 
 def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, check: ClipCheck,
@@ -568,6 +637,7 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
 def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> None:
     """Rebuild a rotation track's parameter values for a new local target."""
     fresh = _rotation_track_from(target, motion, node)
+    track.recon = None
     if fresh.kind != track.kind:
         track.keys = None  # the old keys belong to another parameterisation
     track.kind, track.values, track.target, track.ref, track.axis = (
@@ -583,13 +653,14 @@ def _track_values(track: Track) -> np.ndarray:
 
 def _track_recon(track: Track) -> np.ndarray:
     """What the runtime decodes for a track on every frame: local rotation, translation or
-    scale."""
+    scale (kept on the track until it is fitted again: a repair pass asks for every track's)."""
+    if track.recon is not None:
+        return track.recon
     frames = len(track.values)
     if track.keys is None:
-        if track.kind in VECTOR_KINDS:
-            return np.broadcast_to(track.constant, (frames, 3))
-        return np.broadcast_to(track.constant, (frames, 4))
-    values = _track_values(track)
-    if track.kind in VECTOR_KINDS:
-        return values
-    return _track_rotations(track, values)
+        recon = np.broadcast_to(track.constant, (frames, 3 if track.kind in VECTOR_KINDS else 4))
+    else:
+        values = _track_values(track)
+        recon = values if track.kind in VECTOR_KINDS else _track_rotations(track, values)
+    track.recon = recon
+    return recon

@@ -96,3 +96,29 @@ def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])
     scale = 0.5 * (motion.scales[:-1] + motion.scales[1:])
     return forward_kinematics(motion.skeleton, rot, trans, scale)[1], step, turn
+
+
+GLITCH_STEP_CM = 10.0   # a point faster than 12 m/s between two 120 fps frames: a capture glitch
+GLITCH_TURN_DEG = 45.0  # a joint turning faster than 5,400 degrees/s at 120 fps: the same
+
+
+def smooth_intervals(step: np.ndarray, turn: np.ndarray, cm_per_unit: float) -> np.ndarray:
+    """Which intervals between frames the capture moves through smoothly (F-1,) bool, from
+    :func:`halfway_world`'s steps and turns: no point steps more than
+    :data:`GLITCH_STEP_CM` and no joint turns more than :data:`GLITCH_TURN_DEG`. Across a
+    glitch (a marker swap, a foot flipping over for two frames, CMU's T-pose frame 0) half-way
+    is no pose anyone recorded, so no path between the two frames is wrong."""
+    return (np.asarray(step) * cm_per_unit <= GLITCH_STEP_CM) & (np.asarray(turn) <= GLITCH_TURN_DEG)
+
+
+def held_intervals(step: np.ndarray, turn: np.ndarray, cm_per_unit: float) -> np.ndarray:
+    """The intervals between frames where a curve through the frames can follow the capture's
+    own half-way path (F-1,) bool: smooth ones (:func:`smooth_intervals`) whose neighbours are
+    smooth too. Next to a glitch a Catmull-Rom segment's end tangent spans the glitch, so even
+    keys on every frame overshoot there (31 cm half-way in CMU 05_17 between two flipped
+    frames)."""
+    smooth = smooth_intervals(step, turn, cm_per_unit)
+    held = smooth.copy()
+    held[1:] &= smooth[:-1]
+    held[:-1] &= smooth[1:]
+    return held

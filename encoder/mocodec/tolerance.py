@@ -25,9 +25,10 @@ DEFAULT_TOLERANCE_CM = 1.0
 
 EFFECTOR_PATTERN = re.compile(r"hand|foot|toe|head|wrist|ankle|finger|thumb", re.IGNORECASE)
 
-ClipCheck = Callable[[bytes], np.ndarray]
+ClipCheck = Callable[..., np.ndarray]
 """``check(payload) -> (F, N)``: the world position error of a clip payload, in file units,
-decoded by the C runtime (:func:`mocodec.encode.make_check`)."""
+decoded by the C runtime (:func:`mocodec.encode.make_check`); ``check(payload,
+halfway=True) -> (F-1, N)`` the error half-way between frames."""
 
 
 class ToleranceNotMet(RuntimeError):
