@@ -74,9 +74,7 @@ class RuntimeCheck:
     """``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file
     units (half-way between frames (F - 1, N) with ``halfway``), decoded by the C runtime from a
     one-clip asset. It pickles without its cached world positions, and :meth:`one_clip` is the
-    check of one clip alone, small enough to send to a worker process."""``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file units, decoded
-    by the C runtime from a one-clip asset. It pickles without its cached world positions, and
-    :meth:`one_clip` is the check of one clip alone, small enough to send to a worker process."""
+    check of one clip alone, small enough to send to a worker process."""
 
     def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
         from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
