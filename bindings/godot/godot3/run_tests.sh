@@ -12,6 +12,18 @@ GODOT="${GODOT3:-godot3-server}"
 command -v "$GODOT" >/dev/null || { echo "godot3: $GODOT not found (apt-get install godot3-server)" >&2; exit 2; }
 
 "$HERE/build.sh" > /dev/null
+# The addon's .gdnlib lists every library build.sh made, and each platform's arm64 entry comes
+# before its "64" one: Godot 3 takes the first entry whose tags the engine has, and an arm64
+# engine has "64" as well.
+lib="$PROJECT/addons/mocodec/mocodec.gdnlib"
+for f in "$PROJECT"/addons/mocodec/bin/*; do
+    grep -q "=\"res://addons/mocodec/bin/$(basename "$f")\"$" "$lib" || { echo "godot3: $lib does not list bin/$(basename "$f")"; exit 1; }
+done
+for platform in X11 Server; do
+    order="$(awk -F= -v p="$platform" '/^\[/ { s = $0 } s == "[entry]" && ($1 == p ".arm64" || $1 == p ".64") { printf "%s ", $1 }' "$lib")"
+    [ "$order" = "$platform.arm64 $platform.64 " ] || { echo "godot3: $lib: [entry] has '$order', want $platform.arm64 before $platform.64"; exit 1; }
+done
+echo "godot3: addons/mocodec/mocodec.gdnlib lists the $(ls "$PROJECT/addons/mocodec/bin" | wc -l) libraries of bin/, arm64 ahead of x86-64"
 rm -rf "$PROJECT/data" "$PROJECT/.import"
 mcd_test_data "$PROJECT/data" >&2
 # A corrupt asset the importer must refuse (one byte of the payload flipped: checksum).
