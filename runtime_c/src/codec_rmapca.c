@@ -338,10 +338,12 @@ static mcd_result rmap_validate(const mcd_clip_view* v) {
 }
 
 /* ---------------------------------------------------------------- scratch */
-/* A piece's curve set loaded in one of two slots (two: a cross-fade reads both pieces). */
+/* A piece's curve set loaded in one of two slots (two: a cross-fade reads both pieces). No
+ * pointers in the scratch state: its size is stored in the asset (CLIP scratch_bytes), so it
+ * must come out the same on 32- and 64-bit targets (wasm32 refused the assets otherwise). */
 typedef struct piece_slot {
     int32_t piece;                 /* -1: none */
-    const uint8_t* primary;        /* the primary's curve set sampled in this slot's area, or NULL */
+    uint32_t primary;              /* the primary whose curve set this slot's area samples, or NO_PRIMARY */
 } piece_slot;
 
 typedef struct rmap_state {
@@ -349,6 +351,7 @@ typedef struct rmap_state {
     uint32_t max_nodes, max_k;     /* transforms in `curves`, floats in `coef` */
     uint32_t root_scratch, piece_scratch, primary_scratch; /* bytes of each rma area */
 } rmap_state;
+typedef char rmap_state_is_36_bytes[sizeof(rmap_state) == 36u ? 1 : -1]; /* on every target */
 
 typedef struct rmap_views {
     rmap_state* st;
@@ -563,7 +566,7 @@ static void prepare(const mcd_clip_view* v, const prefix* P, const rmap_views* s
         s->joint[node] = (int32_t)i;
     }
     s->st->slot[0].piece = s->st->slot[1].piece = -1;
-    s->st->slot[0].primary = s->st->slot[1].primary = NULL;
+    s->st->slot[0].primary = s->st->slot[1].primary = NO_PRIMARY;
 }
 
 /* Piece holding frame position x (the last piece whose start is <= x). */
@@ -690,9 +693,9 @@ static void add_piece_markers(const prefix* P, const clip_layout* C, const rmap_
          * the differences to add to the primary's coefficients there (seed 003 eq. 6). */
         const uint8_t* pset = P->s + shared_offset(P, primary);
         float r = s->curves[0].translation[0];
-        int pfresh = fresh || s->st->slot[which].primary != pset;
+        int pfresh = fresh || s->st->slot[which].primary != primary;
         for (i = 0; i < k; ++i) s->coef[i] = coef_of(s->curves, 1, i);
-        s->st->slot[which].primary = pset;
+        s->st->slot[which].primary = primary;
         set_view(P, pset, &cv);
         mcd_codec_rma_ops.sample(&cv, clampf(r, 0.0f, (float)(cv.frame_count - 1u)), 0, s->curves,
                                  s->primary_rma[which], pfresh);
