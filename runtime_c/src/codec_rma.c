@@ -734,19 +734,11 @@ static mcd_result rma_validate(const mcd_clip_view* v) {
 
 /* The section: a 16-byte header, then the payloads back to back, each one a clip's. */
 static mcd_result rma_validate_section(const uint8_t* s, uint32_t size) {
-    uint32_t count, i;
-    size_t pos = SECTION_HEADER;
+    uint32_t count;
     if (size < SECTION_HEADER) return MCD_ERROR_MALFORMED;
     count = mcd_rd_u32(s);
     if (count == 0 || mcd_rd_u32(s + 4) || mcd_rd_u32(s + 8) || mcd_rd_u32(s + 12)) return MCD_ERROR_MALFORMED;
-    for (i = 0; i < count; ++i) {
-        uint32_t n;
-        if (size - pos < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
-        n = mcd_rd_u32(s + pos);
-        if (n < PAYLOAD_HEADER || (n & 3u) || n > size - pos) return MCD_ERROR_MALFORMED;
-        pos += n;
-    }
-    return pos == size ? MCD_OK : MCD_ERROR_MALFORMED;
+    return mcd_check_payload_run(s, size, SECTION_HEADER, count, PAYLOAD_HEADER);
 }
 
 const mcd_codec_ops mcd_codec_rma_ops = {

@@ -197,14 +197,7 @@ static mcd_result rmap_validate_section(const uint8_t* s, uint32_t size) {
     }
     if (pos != P.shared_end) return MCD_ERROR_MALFORMED;
     /* Then the clip payloads, back to back to the section's end. */
-    for (i = 0; i < P.clips; ++i) {
-        uint32_t n;
-        if (size - pos < CLIP_HEADER) return MCD_ERROR_MALFORMED;
-        n = mcd_rd_u32(s + pos);
-        if (n < CLIP_HEADER || (n & 3u) || n > size - pos) return MCD_ERROR_MALFORMED;
-        pos += n;
-    }
-    return pos == size ? MCD_OK : MCD_ERROR_MALFORMED;
+    return mcd_check_payload_run(s, size, pos, P.clips, CLIP_HEADER);
 }
 
 /* ---------------------------------------------------------------- clip payload */

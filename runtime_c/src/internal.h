@@ -139,6 +139,20 @@ static inline mcd_quat mcd_mrp_to_quat(const float p[3]) {
     return q;
 }
 
+/* `count` payloads back to back from `pos` to the section's end, each starting with its own u32
+ * size (a multiple of 4, at least `header` bytes): the clip lists of RMAL and RMAP. */
+static inline mcd_result mcd_check_payload_run(const uint8_t* s, size_t size, size_t pos, uint32_t count,
+                                               uint32_t header) {
+    uint32_t i, n;
+    for (i = 0; i < count; ++i) {
+        if (size - pos < header) return MCD_ERROR_MALFORMED;
+        n = mcd_rd_u32(s + pos);
+        if (n < header || (n & 3u) || n > size - pos) return MCD_ERROR_MALFORMED;
+        pos += n;
+    }
+    return pos == size ? MCD_OK : MCD_ERROR_MALFORMED;
+}
+
 /* A stored length or parameter: finite and within the format's bound. */
 static inline int mcd_in_bounds(float v) {
     return mcd_finite(v) && v <= MCD_MAX_ABS_VALUE && v >= -MCD_MAX_ABS_VALUE;
