@@ -1,6 +1,7 @@
 """Baking on several cores, on a Dask cluster and from a cache gives the serial bake's bytes;
-a worker that dies is survived or ends the bake with one clear error and no asset; bad
-scheduler addresses and flags end in one line."""
+a streamed library (clips read per task, payloads spooled to disk) gives the bytes of one held
+in memory; a worker that dies is survived or ends the bake with one clear error and no asset;
+Ctrl-C leaves no asset and no temporary file; bad scheduler addresses and flags end in one line."""
 from __future__ import annotations
 
 import dataclasses
@@ -15,12 +16,16 @@ import pytest
 
 from mocodec.bake import (BakeError, ClipCache, ClipJob, ClipOutcome, ProcessRunner, SerialRunner, job_key,
                           make_runner)
+from mocodec.bake.fingerprint import motion_digest
+from mocodec.bake.library import ClipRef, Library, open_library
+from mocodec.bake.progress import Progress
+from mocodec.bake.spool import PayloadSpool
 from mocodec.cli import main
 from mocodec.codecs.rma import RMASettings, encode_clip
 from mocodec.encode import encode_motions
 from mocodec.load import load_all
 from mocodec.tolerance import Tolerance
-from mocodec.units import resolve_library_units
+from mocodec.units import figure_facts, resolve_library_units
 
 TOL = 2.0  # loose: the tests check where clips run, not how well they fit
 
@@ -166,6 +171,136 @@ def test_serial_runner_is_the_default(library):
     assert isinstance(runner, (SerialRunner, ProcessRunner)) and runner.workers == len(os.sched_getaffinity(0))
 
 
+# ----------------------------------------------------------------------------- streamed library
+@pytest.fixture(scope="module")
+def files_asset(sample_paths) -> bytes:
+    """The sample files baked the way a library held in memory is: every motion read up front."""
+    motions = load_all(sample_paths)
+    return encode_motions(motions, resolve_library_units(motions, "cmu", None), "rma", Tolerance(TOL)).asset
+
+
+def _streamed(sample_paths) -> tuple[Library, list]:
+    """The sample files as a library that keeps no motion in memory (every read goes to the file)."""
+    facts: list = []
+    lib = open_library(sample_paths, resident_bytes=0, visit=lambda i, m: facts.append(figure_facts(m)))
+    return lib, resolve_library_units(lib, "cmu", None, facts=facts)
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_streamed_library_gives_the_bytes_of_one_held_whole(sample_paths, files_asset, jobs):
+    lib, units = _streamed(sample_paths)
+    assert lib._resident == {}
+    with make_runner(jobs) as runner:
+        assert encode_motions(lib, units, "rma", Tolerance(TOL), runner=runner).asset == files_asset
+    assert lib._resident == {}  # nothing was kept: the clips were read where they were needed
+
+
+def test_a_streamed_codec_without_scale_tracks_gives_the_same_bytes(sample_paths):
+    motions = load_all(sample_paths)[:2]
+    units = resolve_library_units(motions, "cmu", None)
+    held = encode_motions(motions, units, "spline", Tolerance(TOL)).asset
+    lib, _ = _streamed(sample_paths[:2])
+    with ProcessRunner(2) as runner:
+        assert encode_motions(lib, units, "spline", Tolerance(TOL), runner=runner).asset == held
+
+
+def test_a_library_reads_its_clips_as_load_all_does(sample_paths, tmp_path):
+    twin = tmp_path / sample_paths[0].name  # two files with one stem: the second is renamed
+    twin.write_bytes(sample_paths[0].read_bytes())
+    paths = [*sample_paths, twin]
+    held = load_all(paths)
+    lib = open_library(paths, resident_bytes=0)
+    assert [r.name for r in lib.refs] == [m.name for m in held] and held[-1].name.endswith("_2")
+    for k in range(len(held)):
+        assert lib[k].name == held[k].name and motion_digest(lib[k]) == motion_digest(held[k])
+    assert lib.refs[0].weight == held[0].frame_count * held[0].skeleton.node_count
+
+
+def test_a_library_keeps_what_fits_and_pickles_without_motions(sample_paths):
+    import pickle
+
+    whole = open_library(sample_paths)
+    assert sorted(whole._resident) == [0, 1, 2]
+    one = open_library(sample_paths, resident_bytes=whole._held - 1)
+    assert len(one._resident) < 3 and one._held <= one.resident_bytes  # least recently used dropped
+    data = pickle.dumps(whole)
+    assert len(data) < 4096  # refs only: a worker reads the clips itself
+    back = pickle.loads(data)
+    assert back._resident == {} and motion_digest(back[1]) == motion_digest(whole[1])
+    assert isinstance(back.refs[0], ClipRef) and len(whole[0:2]) == 2
+
+
+def test_the_spool_gives_back_each_payload_and_leaves_no_file(tmp_path, monkeypatch):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    payloads = {3: b"abc", 0: b"", 1: os.urandom(5000), 2: b"z"}
+    with PayloadSpool() as spool:
+        for k, p in payloads.items():
+            spool.add(k, p)
+        assert list(tmp_path.iterdir()) == []  # unnamed: nothing to leave behind
+        views = spool.views([0, 1, 2, 3])
+    assert [bytes(v) for v in views] == [payloads[k] for k in range(4)]
+    empty = PayloadSpool()
+    empty.add(0, b"")
+    assert [bytes(v) for v in empty.views([0])] == [b""]
+
+
+class _Recorder(Progress):
+    """Progress that records how many clips were in flight at once."""
+
+    def __init__(self, total: int) -> None:
+        super().__init__(total, enabled=False)
+        self.most = 0
+
+    def started(self, name: str) -> None:
+        super().started(name)
+        self.most = max(self.most, len(self.slots))
+
+
+def test_no_more_clips_in_flight_than_workers(library, serial_asset):
+    motions, units = library
+    progress = _Recorder(len(motions))
+    with ProcessRunner(2) as runner:
+        assert encode_motions(motions, units, "rma", Tolerance(TOL), progress=progress, runner=runner).asset \
+            == serial_asset
+    assert progress.most == 2 and progress.done == len(motions) and progress.slots == {}
+
+
+def test_the_bar_shows_each_workers_clip_and_the_cache_hits():
+    import io
+
+    stream = io.StringIO()
+    p = Progress(3, stream=stream, bar=True)
+    p.started("walk")
+    p.started("run")
+    assert p.postfix() == "w1 walk  w2 run"
+    p("walk")
+    p.started("jump")
+    assert p.postfix() == "w1 jump  w2 run"
+    p.hit("idle")
+    assert "(1 cached)" in p.postfix()
+    p("run")
+    p("jump")
+    text = stream.getvalue()
+    assert "3/3" in text and "w2 run" in text and p._bar is None
+
+
+def test_progress_lines_without_a_terminal_and_nothing_when_off():
+    import io
+
+    stream = io.StringIO()
+    p = Progress(2, stream=stream, bar=False)
+    p.started("a")
+    p("a")
+    assert stream.getvalue().startswith("  [1/2] a (")
+    quiet = io.StringIO()
+    q = Progress(2, enabled=False, stream=quiet, bar=True)
+    q.started("a")
+    q("a")
+    assert quiet.getvalue() == "" and q._bar is None
+
+
 # ----------------------------------------------------------------------------- Dask
 @pytest.fixture(scope="module")
 def dask_installed() -> None:
@@ -182,6 +317,12 @@ def cluster(dask_installed):
 
 def test_dask_gives_the_serial_bytes(library, serial_asset, cluster):
     assert _bake(library, make_runner(None, cluster.scheduler_address)) == serial_asset
+
+
+def test_dask_bakes_a_streamed_library_to_the_same_bytes(sample_paths, files_asset, cluster):
+    lib, units = _streamed(sample_paths)
+    with make_runner(None, cluster.scheduler_address) as runner:
+        assert encode_motions(lib, units, "rma", Tolerance(TOL), runner=runner).asset == files_asset
 
 
 def _kill_a_busy_worker(address: str, done: threading.Event, killed: list[int]) -> None:
@@ -268,29 +409,43 @@ def _children(pid: int) -> list[int]:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to find the workers")
-def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path):
+@pytest.mark.parametrize("jobs", [2, 1])
+def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path, jobs):
     import subprocess
     import sys
 
-    out = tmp_path / "lib.mcd"
+    out_dir, tmp = tmp_path / "out", tmp_path / "tmp"
+    out_dir.mkdir()
+    tmp.mkdir()
+    out = out_dir / "lib.mcd"
     # A tight tolerance: the bake lasts long enough to be interrupted while the workers encode.
+    # The bar is on (no -q): the interrupted bar must not add lines to the one message.
     p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, sample_paths), "-o", str(out),
-                          "-t", "0.05", "--units", "cmu", "-q", "--jobs", "2"], stderr=subprocess.PIPE, text=True,
+                          "-t", "0.05", "--units", "cmu", "--jobs", str(jobs)], stderr=subprocess.PIPE,
+                         stdout=subprocess.PIPE, text=True, env={**os.environ, "TMPDIR": str(tmp)},
                          start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60
-    while len(_children(p.pid)) < 3 and p.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.1)  # the resource tracker and two workers
-    workers = _children(p.pid)
-    assert len(workers) >= 3, f"the workers did not start: {p.poll()}"
+    if jobs > 1:
+        while len(_children(p.pid)) < 3 and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)  # the resource tracker and two workers
+        workers = _children(p.pid)
+        assert len(workers) >= 3, f"the workers did not start: {p.poll()}"
+    else:
+        workers = []
+        time.sleep(4.0)  # past the imports and the reading, into the first clip's fit
     time.sleep(0.5)
+    assert p.poll() is None, "the bake ended before it was interrupted"
     os.killpg(p.pid, signal.SIGINT)
     try:
         err = p.communicate(timeout=30)[1]
     except subprocess.TimeoutExpired:
         os.killpg(p.pid, signal.SIGKILL)
         pytest.fail("the bake did not stop within 30 s of Ctrl-C")
-    assert p.returncode == 130 and err.strip().startswith("mocodec: interrupted") and len(err.strip().splitlines()) == 1, err
-    assert list(tmp_path.iterdir()) == []
+    last = err.strip().splitlines()[-1]
+    assert p.returncode == 130 and last == "mocodec: interrupted; no file was changed by the unfinished step", err
+    assert [line for line in err.splitlines() if line.startswith("mocodec:")] == [last]
+    assert "Traceback" not in err
+    assert list(out_dir.iterdir()) == [] and list(tmp.iterdir()) == []  # no asset, no temporary file, no spool
     time.sleep(0.5)
     assert [w for w in workers if Path(f"/proc/{w}").exists() and "zombie" not in
             Path(f"/proc/{w}/status").read_text().lower()] == []

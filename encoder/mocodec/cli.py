@@ -63,27 +63,10 @@ class Terminated(BaseException):
 
 # ----------------------------------------------------------------------------- helpers
 def _progress(total: int, enabled: bool):
-    """A progress callback for multi-clip work: a bar on a terminal (clips done / total, time,
-    ETA, the last clip done), a line per clip otherwise (logs stay readable)."""
-    done = [0]
-    started = time.perf_counter()
-    bar = None
-    if enabled and total >= 2 and sys.stderr.isatty():
-        from tqdm import tqdm
+    """A progress callback for multi-clip work (:class:`mocodec.bake.progress.Progress`)."""
+    from .bake.progress import Progress
 
-        bar = tqdm(total=total, unit="clip", file=sys.stderr, dynamic_ncols=True)
-
-    def step(name: str) -> None:
-        done[0] += 1
-        if bar is not None:
-            bar.set_postfix_str(printable(name), refresh=False)
-            bar.update(1)
-            if done[0] == total:
-                bar.close()
-        elif enabled and total >= 2:
-            print(f"  [{done[0]}/{total}] {printable(name)} ({time.perf_counter() - started:.1f}s)", file=sys.stderr, flush=True)
-
-    return step
+    return Progress(total, enabled)
 
 
 def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
@@ -100,16 +83,19 @@ def _warn(message: str) -> None:
 
 
 def _load(paths: list[Path], args: argparse.Namespace, quiet: bool):
-    from .load import load_all
-    from .units import resolve_library_units
+    """The clips as a streamed library (:mod:`mocodec.bake.library`: each file read once here,
+    kept in memory while the library is small) and their units."""
+    from .bake.library import open_library
+    from .units import figure_facts, resolve_library_units
 
-    motions = load_all(paths, getattr(args, "rate", None))
+    facts = []
+    motions = open_library(paths, getattr(args, "rate", None), visit=lambda i, m: facts.append(figure_facts(m)))
     units = resolve_library_units(motions, args.units, args.cm_per_unit,
-                                  strict=bool(getattr(args, "strict", False)), warn=_warn)
+                                  strict=bool(getattr(args, "strict", False)), warn=_warn, facts=facts)
     if not quiet:
         described = {}
-        for m, u in zip(motions, units):
-            described.setdefault(u.describe(), []).append(m.name)
+        for ref, u in zip(motions.refs, units):
+            described.setdefault(u.describe(), []).append(ref.name)
         for text, clips in described.items():
             which = printable(clips[0]) if len(clips) == 1 else f"{len(clips)} clips"
             print(f"{which}: {text}", file=sys.stderr)
@@ -168,10 +154,13 @@ def _encode(args: argparse.Namespace, paths: list[Path] | None = None):
             else f"tolerance {args.tolerance} cm{eff}"
         print(f"encoding {len(motions)} clip(s) with codec {codec!r}, {promise}", file=sys.stderr)
     progress = _progress(len(motions), not quiet and not getattr(args, "json", False))
-    with _runner(args) as runner:
-        result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
-                                contacts=bool(getattr(args, "contacts", False)), runner=runner)
-    return motions, result
+    try:
+        with _runner(args) as runner:
+            result = encode_motions(motions, units, codec, tolerance, _codec_options(args), progress,
+                                    contacts=bool(getattr(args, "contacts", False)), runner=runner)
+    finally:
+        progress.close()
+    return motions, result, runner.workers
 
 
 def _runner(args: argparse.Namespace):
@@ -252,14 +241,42 @@ def _result_json(result) -> dict[str, Any]:
     }
 
 
+def _bake_summary(result, workers: int, seconds: float) -> dict[str, Any]:
+    """The bake in a few numbers (``--json``'s ``bake``): clips, asset bytes, wall seconds from
+    reading the first file to the asset written, raw MB/s in ACL's convention (40 B per
+    bone-sample) and of the BVH float32 channels, cache hits, the error per codec, and the peak
+    resident memory of this process and of its largest worker."""
+    import resource
+
+    from .metrics import combine
+
+    mb = 1e6 * max(seconds, 1e-9)
+    kib = 1024 / 1e6  # ru_maxrss is in KiB on Linux
+    return {
+        "clips": len(result.clips),
+        "bytes": result.size.asset_bytes,
+        "seconds": round(seconds, 3),
+        "workers": workers,
+        "mb_per_s": round(result.size.raw_acl_bytes / mb, 3),
+        "bvh_mb_per_s": round(result.size.raw_bvh_bytes / mb, 3),
+        "cache_hits": sum(bool(c.stats.get("cached")) for c in result.clips),
+        "error": {result.codec: combine([c.error for c in result.clips])},
+        "peak_rss_mb": {"main": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * kib, 1),
+                        "largest_worker": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * kib, 1)},
+    }
+
+
 # ----------------------------------------------------------------------------- commands
 def cmd_encode(args: argparse.Namespace) -> int:
+    started = time.perf_counter()
     paths = _expand_inputs(args.inputs)
     out = check_output(args.output, paths)
-    _, result = _encode(args, paths)
+    _, result, workers = _encode(args, paths)
     write_atomic(out, result.asset)
     if args.json:
-        print(json.dumps(_result_json(result), indent=2))
+        data = _result_json(result)
+        data["bake"] = _bake_summary(result, workers, time.perf_counter() - started)
+        print(json.dumps(data, indent=2))
     elif not args.quiet:
         print(f"wrote {printable(str(out))}")
         print("\n".join(_summary_lines(result)))
@@ -314,13 +331,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
         return cmd_sweep(args)
     if args.codecs or args.plot:
         raise CliError("--codecs and --plot go with --sweep")
+    started = time.perf_counter()
     paths = _expand_inputs(args.inputs)
     out = check_output(args.output, paths) if args.output else None
-    motions, result = _encode(args, paths)
+    motions, result, workers = _encode(args, paths)
     if out is not None:
         write_atomic(out, result.asset)
     if args.json:
         data = _result_json(result)
+        data["bake"] = _bake_summary(result, workers, time.perf_counter() - started)
         if all(m.skeleton.names == motions[0].skeleton.names for m in motions):
             data["per_joint"] = {
                 n: {"max_cm": float(mx)} for n, mx in
@@ -483,7 +502,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     ns = argparse.Namespace(inputs=[str(samples)], codec=args.codec, tolerance=args.tolerance,
                             effector_tolerance=None, units=None, cm_per_unit=None, option=None,
                             quiet=False, json=False)
-    motions, result = _encode(ns)
+    motions, result, _ = _encode(ns)
     write_atomic(asset_path, result.asset)
     print(f"encoded {len(motions)} sample clips ({samples}) -> {asset_path}")
     print("\n".join(_summary_lines(result)))

@@ -172,7 +172,8 @@ class AssetBuilder:
         # Each clip record states the scratch its codec needs, computed by the runtime itself.
         from .runtime import clip_scratch_size  # the runtime binding, imported only to build
         skel_bytes = [sections[i].data for i in range(len(self.skeletons))]
-        scratch = [clip_scratch_size(codecs.get(e.codec).id, bytes(blobs[e.codec]), off, len(e.payload),
+        section_bytes = {name: sections[i].data for name, i in codec_section.items()}  # one copy, not one a clip
+        scratch = [clip_scratch_size(codecs.get(e.codec).id, section_bytes[e.codec], off, len(e.payload),
                                      skel_bytes[e.skeleton], e.frame_count, float(np.float32(e.frame_rate)))
                    for e, off in zip(self.clips, payload_offsets)]
         sections[clip_index] = Section(b"CLIP", clip_section(self.clips, codec_section, payload_offsets, scratch),

@@ -16,7 +16,7 @@ import numpy as np
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import halfway_world, motion_world
-from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_bvh_bytes, size_report
+from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
@@ -79,7 +79,10 @@ class RuntimeCheck:
     def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
         from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
 
-        self.motions, self.cm_per_unit, self.codec = list(motions), list(cm_per_unit), codec
+        from .bake.library import Library  # a streamed library stays one: clips read as checked
+
+        self.motions = motions if isinstance(motions, Library) else list(motions)
+        self.cm_per_unit, self.codec = list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
         self._halfway: dict[int, np.ndarray] = {}  # computed when a codec first asks
 
@@ -99,9 +102,11 @@ class RuntimeCheck:
         return np.linalg.norm(pos - self._originals[i], axis=-1)
 
     def one_clip(self, i: int, prefix: bytes = b"") -> Callable[[bytes], np.ndarray]:
-        """``check(payload)`` of clip ``i`` alone."""
-        return functools.partial(RuntimeCheck([self.motions[i]], [self.cm_per_unit[i]], self.codec), 0,
-                                 prefix=prefix)
+        """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
+        from .bake.library import Library
+
+        one = self.motions.subset([i]) if isinstance(self.motions, Library) else [self.motions[i]]
+        return functools.partial(RuntimeCheck(one, [self.cm_per_unit[i]], self.codec), 0, prefix=prefix)
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_originals": {}, "_halfway": {}}
@@ -158,11 +163,16 @@ def encode_motions(
     if len(motions) > limits.MAX_CLIPS:
         raise EncodeError(f"{len(motions):,} clips; an asset holds at most {limits.MAX_CLIPS:,}")
     tolerance = tolerance or Tolerance(DEFAULT_TOLERANCE_CM)
-    for m in motions:
-        m.validate()
-        limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
     entry = codecs.get(codec)
     from .load import sampling_notes
+    # One pass over the clips before the codec and one after (evaluate): what the asset and the
+    # report need of each clip is kept here, so a streamed library is not read again for it.
+    builder = AssetBuilder()
+    facts = []
+    for m, u in zip(motions, units):
+        m.validate()
+        limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
+        facts.append(_ClipFacts.of(m, builder.add_skeleton(m.skeleton, u.cm_per_unit), tolerance))
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()
     check = make_check(motions, cm, codec)
@@ -170,28 +180,25 @@ def encode_motions(
         out = entry.encode(motions, cm, tolerance, check, options, progress, runner)
     except ToleranceNotMet as exc:
         raise EncodeError(f"cannot meet the tolerance: {exc}") from None
-    builder = AssetBuilder()
     if out.section_prefix:
         builder.codec_prefix[codec] = out.section_prefix
     skin_joints: dict[str, str] = {}
-    for m, u, payload in zip(motions, units, out.payloads):
-        s = builder.add_skeleton(m.skeleton, u.cm_per_unit)
-        builder.add_clip(ClipEntry(m.name, s, codec, payload, m.frame_count, m.frame_rate))
-        if (m.source or {}).get("joints") is not None:
-            skin_joints[str(s)] = index_ranges(m.source["joints"])
+    for f, payload in zip(facts, out.payloads):
+        builder.add_clip(ClipEntry(f.name, f.skeleton, codec, payload, f.frames, f.frame_rate))
+        if f.joints is not None:
+            skin_joints[str(f.skeleton)] = index_ranges(f.joints)
     # First pass measures the asset; the second writes the measured errors into META.
     asset = builder.build()
-    contact_stats: list[dict[str, Any]] = [{} for _ in motions]
+    contact_stats: list[dict[str, Any]] = [{} for _ in facts]
     if contacts:
         asset, contact_stats = add_contacts(builder, asset, motions, units, tolerance)
     reports = evaluate(asset, motions, units, contacts=contacts)
     elapsed = time.perf_counter() - started
-    tol_nodes = [tolerance.per_node_cm(m.skeleton) for m in motions]
-    for m, r, t in zip(motions, reports, tol_nodes):
-        over = r.errors_cm > t[None, :] + 1e-9
+    for f, r in zip(facts, reports):
+        over = r.errors_cm > f.tolerance_cm[None, :] + 1e-9
         if over.any() and out.promise:
             raise EncodeError(
-                f"clip {m.name!r}: error {r.max_cm:.4f} cm exceeds the tolerance on "
+                f"clip {f.name!r}: error {r.max_cm:.4f} cm exceeds the tolerance on "
                 f"{int(over.sum())} samples (this is a bug in codec {codec!r})"
             )
     builder.meta = {
@@ -202,30 +209,55 @@ def encode_motions(
                      "contacts": contacts, **out.settings}
         if out.promise else {"tolerance_cm": None, "contacts": contacts, **out.settings},
         "clips": {
-            m.name: {
+            f.name: {
                 "max_error_cm": round(r.max_cm, 6),
                 "p99_error_cm": round(r.p99_cm, 6),
                 "mean_error_cm": round(r.mean_cm, 6),
                 "height_cm": round(r.height_cm, 3),
                 "cm_per_unit": u.cm_per_unit,
                 "units": u.label,
-                "raw_bvh_bytes": raw_bvh_bytes(m),
-                **_source_meta(m),
+                "raw_bvh_bytes": f.raw_bvh_bytes,
+                **f.source_meta,
             }
-            for m, r, u in zip(motions, reports, units)
+            for f, r, u in zip(facts, reports, units)
         },
         # glTF export: which nodes of each skeleton were skin joints (the others moved them).
         **({"skin_joints": skin_joints} if skin_joints else {}),
     }
     asset = builder.build()
-    stats = out.stats or [{} for _ in motions]
+    stats = out.stats or [{} for _ in facts]
     for s, payload, cs in zip(stats, out.payloads, contact_stats):
         s["payload_bytes"] = len(payload)
         s.update(cs)
-    clips = [ClipReport(m.name, m.frame_count, r, u, s)
-             for m, r, u, s in zip(motions, reports, units, stats)]
-    return EncodeResult(asset, codec, tolerance, clips, size_report(motions, len(asset)), elapsed,
-                        out.promise, dict(out.settings), sampling_notes(motions))
+    clips = [ClipReport(f.name, f.frames, r, u, s) for f, r, u, s in zip(facts, reports, units, stats)]
+    size = SizeReport(asset_bytes=len(asset), raw_bvh_bytes=sum(f.raw_bvh_bytes for f in facts),
+                      raw_acl_bytes=sum(f.raw_acl_bytes for f in facts), seconds=sum(f.seconds for f in facts))
+    return EncodeResult(asset, codec, tolerance, clips, size, elapsed, out.promise, dict(out.settings),
+                        sampling_notes(facts))  # type: ignore[arg-type]
+
+
+@dataclass
+class _ClipFacts:
+    """What an encode keeps of a clip besides its payload (a few numbers, not its frames)."""
+
+    name: str
+    skeleton: int
+    frames: int
+    frame_rate: float
+    seconds: float
+    raw_bvh_bytes: int
+    raw_acl_bytes: int
+    tolerance_cm: np.ndarray
+    source: dict[str, Any]
+    source_meta: dict[str, Any]
+    joints: list[int] | None
+
+    @classmethod
+    def of(cls, m: Motion, skeleton: int, tolerance: Tolerance) -> "_ClipFacts":
+        src = m.source or {}
+        return cls(m.name, skeleton, m.frame_count, m.frame_rate, m.frame_count * m.frame_time,
+                   raw_bvh_bytes(m), raw_acl_bytes(m), tolerance.per_node_cm(m.skeleton),
+                   {k: v for k, v in src.items() if k != "joints"}, _source_meta(m), src.get("joints"))
 
 
 def _source_meta(m: Motion) -> dict[str, Any]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 from .io import read_bvh, read_gltf
 from .motion import Motion
@@ -58,21 +58,29 @@ def load(path: str | os.PathLike, rate: float | None = None) -> list[Motion]:
     return load_all([path], rate)
 
 
-def load_all(paths: Sequence[str | os.PathLike], rate: float | None = None) -> list[Motion]:
-    """The clips of several files or folders (see :func:`load`), names made unique
-    (``walk``, ``walk_2``)."""
-    motions: list[Motion] = []
+def read_clips(path: Path, rate: float | None = None) -> list[Motion]:
+    """The clips of one file: a BVH's one clip, a glTF's animations (names as in the file)."""
+    return read_gltf(path, rate) if path.suffix.lower() in GLTF_SUFFIXES else [read_bvh(path)]
+
+
+def iter_clips(paths: Sequence[str | os.PathLike], rate: float | None = None) -> Iterator[tuple[Path, int, Motion]]:
+    """(file, index in the file, clip) of every clip of ``paths`` in order, names made unique
+    (``walk``, ``walk_2``): a library read one file at a time."""
     names: set[str] = set()
     for p in expand(paths):
-        clips = read_gltf(p, rate) if p.suffix.lower() in GLTF_SUFFIXES else [read_bvh(p)]
-        for m in clips:
+        for index, m in enumerate(read_clips(p, rate)):
             base, k = m.name, 2
             while m.name in names:  # two files with one stem: keep both, distinctly named
                 m.name = f"{base}_{k}"
                 k += 1
             names.add(m.name)
-            motions.append(m)
-    return motions
+            yield p, index, m
+
+
+def load_all(paths: Sequence[str | os.PathLike], rate: float | None = None) -> list[Motion]:
+    """The clips of several files or folders (see :func:`load`), names made unique
+    (``walk``, ``walk_2``)."""
+    return [m for _, _, m in iter_clips(paths, rate)]
 
 
 def sampling_notes(motions: Sequence[Motion]) -> list[str]:

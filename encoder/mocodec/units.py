@@ -157,9 +157,28 @@ def source_file(motion: Motion) -> str:
     return str((motion.source or {}).get("file") or motion.name)
 
 
+@dataclass(frozen=True)
+class FigureFacts:
+    """What the units of a clip depend on (:func:`figure_facts`): gathered as a library is
+    read, so that its units are found without holding or reading its clips again."""
+
+    gltf: bool
+    layout: tuple
+    height: float
+    file: str
+    skeleton: Skeleton
+
+
+def figure_facts(motion: Motion) -> FigureFacts:
+    """The facts of ``motion`` that :func:`resolve_library_units` looks at."""
+    return FigureFacts((motion.source or {}).get("format") == "gltf", _layout_key(motion.skeleton),
+                       pose_height(motion), source_file(motion), motion.skeleton)
+
+
 def resolve_library_units(motions: Sequence[Motion], units: str | None = None,
                           cm_per_unit: float | None = None, strict: bool = False,
-                          warn: Callable[[str], None] | None = None) -> list[UnitsChoice]:
+                          warn: Callable[[str], None] | None = None,
+                          facts: Sequence[FigureFacts] | None = None) -> list[UnitsChoice]:
     """The unit of every clip of a library, one per skeleton layout.
 
     glTF clips are in metres (``units`` and ``cm_per_unit`` apply to BVH clips only). BVH
@@ -167,27 +186,29 @@ def resolve_library_units(motions: Sequence[Motion], units: str | None = None,
     the median of their :func:`pose_height`, and the unit is the one given, or the one that
     makes that height closest to 170 cm. A height outside :data:`PLAUSIBLE_CM` is reported
     through ``warn(message)`` (one line naming the files and the height) or, with ``strict``,
-    raised as :class:`UnitsError`.
+    raised as :class:`UnitsError`. ``facts``: the clips' :func:`figure_facts`, when gathered
+    already (then ``motions`` is not read).
     """
-    out: list[UnitsChoice | None] = [None] * len(motions)
+    facts = list(facts) if facts is not None else [figure_facts(m) for m in motions]
+    out: list[UnitsChoice | None] = [None] * len(facts)
     groups: dict[tuple, list[int]] = {}
-    for k, m in enumerate(motions):
-        if (m.source or {}).get("format") == "gltf":
-            h = pose_height(m)
+    for k, f in enumerate(facts):
+        if f.gltf:
+            h = f.height
             out[k] = UnitsChoice(UNITS["m"], "m", False, h, h * UNITS["m"], known="glTF is in metres")
         else:
-            groups.setdefault(_layout_key(m.skeleton), []).append(k)
+            groups.setdefault(f.layout, []).append(k)
     for members in groups.values():
-        heights = [pose_height(motions[k]) for k in members]
+        heights = [facts[k].height for k in members]
         height = float(np.median(heights))
-        base = resolve_units(motions[members[0]].skeleton, units, cm_per_unit)
+        base = resolve_units(facts[members[0]].skeleton, units, cm_per_unit)
         if units is None and cm_per_unit is None:
             scale, label = _nearest_unit(height)
             base = replace(base, cm_per_unit=scale, label=label)
         choice = replace(base, height_units=height, height_cm=height * base.cm_per_unit)
         lo, hi = PLAUSIBLE_CM
         if choice.height_units > 0 and not lo <= choice.height_cm <= hi:
-            files = [source_file(motions[k]) for k in members]
+            files = [facts[k].file for k in members]
             where = files[0] if len(files) == 1 else f"{files[0]} and {len(files) - 1} more with its skeleton"
             how = "guessed" if choice.guessed else "given"
             message = (f"{where}: a figure {choice.height_cm:.0f} cm tall in the {how} unit "

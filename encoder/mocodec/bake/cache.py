@@ -38,7 +38,7 @@ def job_key(job: "ClipJob") -> str:
         "settings": settings_digest(job.settings),
         "cm_per_unit": repr(float(job.cm_per_unit)),
         "prefix": job.prefix.hex(),
-        "motion": motion_digest(job.motion),
+        "motion": motion_digest(job.load()),
     }
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 

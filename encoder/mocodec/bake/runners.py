@@ -7,6 +7,11 @@ clips, so a codec hands its clips to a :class:`Runner` as :class:`ClipJob` objec
 the asset's bytes do not depend on where or in which order the clips ran. Jobs start longest
 first, so that a long clip does not start last and leave the other workers idle. A runner with a
 :class:`~.cache.ClipCache` encodes only the clips it does not hold.
+
+Memory stays bounded however long the library: a job names its clip (a
+:class:`~.library.ClipRef` the worker reads) rather than carrying it, only as many jobs as there
+are workers are in flight at once, and each finished payload goes to a
+:class:`~.spool.PayloadSpool` on disk until the asset is assembled.
 """
 from __future__ import annotations
 
@@ -24,8 +29,12 @@ from typing import Any, Callable, Iterator, Sequence
 from ..motion import Motion
 from .cache import ClipCache, job_key
 from .fingerprint import encoder_fingerprint
+from .library import ClipRef
+from .spool import PayloadSpool
 
 ProgressFn = Callable[[str], None]
+"""``progress(name)`` when a clip is done. A progress object may also have ``started(name)``
+(a worker took the clip) and ``hit(name)`` (the clip came from the cache; else ``progress``)."""
 
 WAIT_FOR_WORKERS_S = 60.0
 """How long a bake waits for a Dask scheduler to have a worker before it gives up."""
@@ -45,7 +54,8 @@ class EncoderMismatch(BakeError):
 
 @dataclass
 class ClipJob:
-    """One clip to encode: ``encode_clip(motion, cm_per_unit, settings, check)`` of its codec.
+    """One clip to encode: ``encode_clip(motion, cm_per_unit, settings, check)`` of its codec;
+    ``motion`` is the clip or a :class:`~.library.ClipRef` to it (read where the job runs).
 
     ``check`` (payload -> world error, the clip alone through the runtime, in a section that
     starts with ``prefix``) and everything else here must pickle for a process or Dask runner.
@@ -54,7 +64,7 @@ class ClipJob:
 
     name: str
     encode_clip: Callable[..., Any]
-    motion: Motion
+    motion: Motion | ClipRef
     cm_per_unit: float
     settings: Any
     check: Callable[[bytes], Any]
@@ -64,7 +74,13 @@ class ClipJob:
     @property
     def weight(self) -> int:
         """A guess of the work: frames times nodes."""
+        if isinstance(self.motion, ClipRef):
+            return self.motion.weight
         return self.motion.frame_count * self.motion.skeleton.node_count
+
+    def load(self) -> Motion:
+        """The clip (read from its file for a ref)."""
+        return self.motion.load() if isinstance(self.motion, ClipRef) else self.motion
 
 
 @dataclass
@@ -85,7 +101,7 @@ def run_job(job: ClipJob) -> ClipOutcome:
             f"clip {job.name!r}: a Dask worker runs other mocodec code than this client (fingerprint "
             f"{encoder_fingerprint(binaries=False)[:12]} vs {job.fingerprint[:12]}); install the same "
             "mocodec on the workers")
-    r = job.encode_clip(job.motion, job.cm_per_unit, job.settings, job.check)
+    r = job.encode_clip(job.load(), job.cm_per_unit, job.settings, job.check)
     return ClipOutcome(r.payload, dict(r.stats), float(r.seconds))
 
 
@@ -100,33 +116,45 @@ class Runner:
 
     def run(self, jobs: Sequence[ClipJob], progress: ProgressFn | None = None) -> list[ClipOutcome]:
         """The outcome of every job, in the order of ``jobs``; ``progress(name)`` after each.
-        An error of one clip (its codec's, or :class:`BakeError`) stops the others and is raised."""
+        Payloads wait in a spool file until all are done; an outcome's payload is a read-only
+        view of it. An error of one clip (its codec's, or :class:`BakeError`) stops the others
+        and is raised."""
         outcomes: list[ClipOutcome | None] = [None] * len(jobs)
         keys: dict[int, str] = {}
         todo: list[tuple[int, ClipJob]] = []
-        for i, job in enumerate(jobs):
-            if self.cache is not None:
-                keys[i] = job_key(job)
-                hit = self.cache.get(keys[i])
-                if hit is not None:
-                    outcomes[i] = hit
-                    if progress:
-                        progress(job.name)
-                    continue
-            todo.append((i, job))
-        todo.sort(key=lambda item: -item[1].weight)  # stable: equal weights keep clip order
-        for i, outcome in self._dispatch(todo):
-            outcomes[i] = outcome
-            if self.cache is not None:
-                self.cache.put(keys[i], outcome)
-            if progress:
-                progress(jobs[i].name)
-        assert all(o is not None for o in outcomes)
+        with PayloadSpool() as spool:
+            for i, job in enumerate(jobs):
+                if self.cache is not None:
+                    keys[i] = job_key(job)
+                    hit = self.cache.get(keys[i])
+                    if hit is not None:
+                        outcomes[i] = self._spooled(spool, i, hit)
+                        _report(progress, "hit", job.name) or (progress and progress(job.name))
+                        continue
+                todo.append((i, job))
+            todo.sort(key=lambda item: -item[1].weight)  # stable: equal weights keep clip order
+            for i, outcome in self._dispatch(todo, progress):
+                if self.cache is not None:
+                    self.cache.put(keys[i], outcome)
+                outcomes[i] = self._spooled(spool, i, outcome)
+                if progress:
+                    progress(jobs[i].name)
+            views = spool.views(list(range(len(jobs))))
+        for o, view in zip(outcomes, views):
+            assert o is not None
+            o.payload = view  # type: ignore[assignment]
         return outcomes  # type: ignore[return-value]
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+    @staticmethod
+    def _spooled(spool: PayloadSpool, i: int, outcome: ClipOutcome) -> ClipOutcome:
+        spool.add(i, outcome.payload)
+        return dataclasses.replace(outcome, payload=b"")
+
+    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+                  progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
         """(position, outcome) of every job of ``todo`` as it finishes."""
         for i, job in todo:
+            _report(progress, "started", job.name)
             yield i, run_job(job)
 
     def close(self) -> None:
@@ -137,6 +165,39 @@ class Runner:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _report(progress: ProgressFn | None, event: str, name: str) -> bool:
+    """Call ``progress.event(name)`` when the progress object has it; whether it did."""
+    method = getattr(progress, event, None)
+    if method is None:
+        return False
+    method(name)
+    return True
+
+
+def _windowed(todo: list[tuple[int, ClipJob]], window: int, submit: Callable[[ClipJob], Any],
+              wait_one: Callable[[set], Any], progress: ProgressFn | None) -> Iterator[tuple[Any, int, ClipJob]]:
+    """Submit the jobs of ``todo`` in order, at most ``window`` in flight (the parent holds only
+    those, not one future per clip of the library); yield (future, position, job) as each ends.
+    ``wait_one(in_flight)`` returns a finished future of the set."""
+    pending = iter(todo)
+    in_flight: dict[Any, tuple[int, ClipJob]] = {}
+
+    def top_up() -> None:
+        while len(in_flight) < window:
+            item = next(pending, None)
+            if item is None:
+                return
+            in_flight[submit(item[1])] = item
+            _report(progress, "started", item[1].name)
+
+    top_up()
+    while in_flight:
+        f = wait_one(set(in_flight))
+        i, job = in_flight.pop(f)
+        yield f, i, job
+        top_up()
 
 
 class SerialRunner(Runner):
@@ -183,16 +244,28 @@ class ProcessRunner(Runner):
             self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_ignore_interrupt)
         return self._pool
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+                  progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
         if len(todo) <= 1:  # starting a process would only add its start-up time
-            yield from super()._dispatch(todo)
+            yield from super()._dispatch(todo, progress)
             return
         pool = self._executor()
-        with _workers_ignore_interrupt():
-            futures = {pool.submit(run_job, job): (i, job) for i, job in todo}
+        submitted: list[cf.Future] = []
+
+        def submit(job: ClipJob) -> cf.Future:
+            if len(submitted) < self.workers:  # the pool starts a worker on each of these submits
+                with _workers_ignore_interrupt():
+                    f = pool.submit(run_job, job)
+            else:
+                f = pool.submit(run_job, job)
+            submitted.append(f)
+            return f
+
+        def wait_one(futures: set) -> cf.Future:
+            return next(iter(cf.wait(futures, return_when=cf.FIRST_COMPLETED).done))
+
         try:
-            for f in cf.as_completed(futures):
-                i, job = futures[f]
+            for f, i, job in _windowed(todo, self.workers, submit, wait_one, progress):
                 try:
                     outcome = f.result()
                 except cf.process.BrokenProcessPool:
@@ -200,7 +273,7 @@ class ProcessRunner(Runner):
                                     "out of memory: try fewer --jobs); nothing was written") from None
                 yield i, outcome
         except BaseException:
-            for f in futures:
+            for f in submitted:
                 f.cancel()
             self.close(kill=True)
             raise
@@ -234,7 +307,8 @@ class DaskRunner(Runner):
             raise BakeError(f"cannot reach the Dask scheduler at {address!r}: {reason}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]]) -> Iterator[tuple[int, ClipOutcome]]:
+    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+                  progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
         if not todo:
             return
         from distributed import KilledWorker, as_completed
@@ -245,17 +319,28 @@ class DaskRunner(Runner):
             raise BakeError(f"the Dask scheduler at {self.address} has no workers (waited {WAIT_FOR_WORKERS_S:g} s): "
                             f"start some with `dask worker {self.address}`") from None
         fingerprint = encoder_fingerprint(binaries=False)
-        futures = {}
-        with warnings.catch_warnings():
-            # A clip's frames are its task's argument: a long clip is a large one, by design.
-            warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
-            for i, job in todo:
-                f = self.client.submit(run_job, dataclasses.replace(job, fingerprint=fingerprint),
-                                       pure=False, key=f"mocodec-clip-{i}-{os.urandom(6).hex()}")
-                futures[f] = (i, job)
+        workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        in_flight: set = set()
+        finished = as_completed(loop=self.client.loop)  # this client's futures, as they end
+
+        def submit(job: ClipJob) -> Any:
+            with warnings.catch_warnings():
+                # A clip's frames may be its task's argument: a long clip is a large one, by design.
+                warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
+                f = self.client.submit(run_job, dataclasses.replace(job, fingerprint=fingerprint), pure=False,
+                                       key=f"mocodec-clip-{os.urandom(8).hex()}")
+            in_flight.add(f)
+            finished.add(f)
+            return f
+
+        def wait_one(futures: set) -> Any:
+            f = next(finished)
+            in_flight.discard(f)
+            return f
+
         try:
-            for f in as_completed(list(futures), loop=self.client.loop):
-                i, job = futures[f]
+            # Two tasks a worker: the next clip is there when one ends (a network away).
+            for f, i, job in _windowed(todo, 2 * workers, submit, wait_one, progress):
                 try:
                     outcome = f.result()
                 except KilledWorker:
@@ -267,7 +352,7 @@ class DaskRunner(Runner):
                                     "(restarted or lost?); nothing was written") from None
                 yield i, outcome
         except BaseException:
-            self.client.cancel(list(futures), force=True)
+            self.client.cancel(list(in_flight), force=True)
             raise
 
     def close(self) -> None:

@@ -185,7 +185,10 @@ class Codec:
         library codec whose ``encode`` takes no runner (its clips share a fit) ignores it."""
         settings = self.settings(tolerance, **(options or {}))
         if not self.scale:
-            motions = [self._scale_free(m) for m in motions]
+            from ..bake.library import Library  # a streamed library: the change made as clips are read
+
+            motions = (motions.map(self._scale_free) if isinstance(motions, Library)
+                       else [self._scale_free(m) for m in motions])
         if not self.per_clip:
             encode = self.implementation.encode
             extra = {"runner": runner} if "runner" in inspect.signature(encode).parameters else {}
@@ -214,9 +217,12 @@ def encode_each_clip(encode_clip: Callable[..., ClipResult], motions: list[Motio
     ``prefix``) through ``runner`` (None: one after the other in this process) and collect
     payloads and stats in clip order."""
     from ..bake import ClipJob, SerialRunner
+    from ..bake.library import clip_ref
 
-    jobs = [ClipJob(m.name, encode_clip, m, cm, settings, _clip_check(check, i, prefix), prefix)
-            for i, (m, cm) in enumerate(zip(motions, cm_per_unit))]
+    # A streamed library's clips are named, not carried: each job reads its own clip.
+    refs = [clip_ref(motions, i) for i in range(len(cm_per_unit))]
+    jobs = [ClipJob(ref.name, encode_clip, ref, cm, settings, _clip_check(check, i, prefix), prefix)
+            for i, (ref, cm) in enumerate(zip(refs, cm_per_unit))]
     out = CodecOutput(payloads=[])
     for o in (runner or SerialRunner()).run(jobs, progress):
         out.payloads.append(o.payload)

@@ -1,0 +1,163 @@
+"""A library of clips that is read clip by clip, not held whole (a studio's library outgrows
+memory long before it outgrows a disk).
+
+:func:`open_library` reads every file once to list its clips (names made unique as
+:func:`mocodec.load.load_all` makes them, sizes, what the units guess needs) and keeps the
+motions it read only while they fit in ``resident_bytes``; a clip read again later comes from
+that store or from its file. A :class:`Library` is a sequence of :class:`~mocodec.motion.Motion`,
+so what takes a list of motions takes it, and a :class:`ClipRef` names one clip of it in a few
+bytes: a bake sends refs to its workers, which read the clips themselves.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence, overload
+
+from ..motion import Motion
+
+RESIDENT_BYTES = 256 << 20
+"""Motions a library keeps in memory by default: the dev set (35 clips, 416 s) fits, so a
+small library is read once; past it, clips are read again from their files when needed."""
+
+
+def motion_bytes(motion: Motion) -> int:
+    """The memory of a motion's frame arrays."""
+    arrays = (motion.rotations, motion.translations, motion.scales, motion.source_channels)
+    return sum(a.nbytes for a in arrays if a is not None)
+
+
+@dataclass(frozen=True)
+class ClipRef:
+    """One clip of a file: the ``index``-th clip of ``path``, called ``name`` (pickles small;
+    :meth:`load` reads it, ``transform`` applied)."""
+
+    path: str
+    index: int
+    name: str
+    rate: float | None
+    frames: int
+    nodes: int
+    transform: Callable[[Motion], Motion] | None = None
+
+    def load(self) -> Motion:
+        from ..load import read_clips
+
+        clips = read_clips(Path(self.path), self.rate)
+        if self.index >= len(clips):
+            raise ValueError(f"{self.path}: clip {self.index} is gone (the file changed during the bake)")
+        motion = clips[self.index]
+        motion.name = self.name
+        return self.transform(motion) if self.transform is not None else motion
+
+    @property
+    def weight(self) -> int:
+        """A guess of the work: frames times nodes."""
+        return self.frames * self.nodes
+
+
+class Library(Sequence[Motion]):
+    """Clips named by :class:`ClipRef`, read when asked for and kept while they fit in
+    ``resident_bytes`` (least recently used dropped first). It pickles without the motions."""
+
+    def __init__(self, refs: Sequence[ClipRef], resident_bytes: int = RESIDENT_BYTES) -> None:
+        self.refs = list(refs)
+        self.resident_bytes = int(resident_bytes)
+        self._resident: OrderedDict[int, Motion] = OrderedDict()
+        self._held = 0
+
+    def __len__(self) -> int:
+        return len(self.refs)
+
+    @overload
+    def __getitem__(self, i: int) -> Motion: ...
+    @overload
+    def __getitem__(self, i: slice) -> "Library": ...
+
+    def __getitem__(self, i: int | slice) -> "Motion | Library":
+        if isinstance(i, slice):
+            return self.subset(range(len(self))[i])
+        if i < 0:
+            i += len(self)
+        if not 0 <= i < len(self):
+            raise IndexError(i)
+        motion = self._resident.get(i)
+        if motion is not None:
+            self._resident.move_to_end(i)
+            return motion
+        motion = self.refs[i].load()
+        self.keep(i, motion)
+        return motion
+
+    def __iter__(self) -> Iterator[Motion]:
+        for i in range(len(self)):
+            yield self[i]
+
+    def keep(self, i: int, motion: Motion) -> None:
+        """Hold clip ``i`` in memory, dropping the least recently used past the budget."""
+        size = motion_bytes(motion)
+        if size > self.resident_bytes:
+            return
+        self._resident[i] = motion
+        self._held += size
+        while self._held > self.resident_bytes:
+            _, old = self._resident.popitem(last=False)
+            self._held -= motion_bytes(old)
+
+    def subset(self, indices: Sequence[int]) -> "Library":
+        """The clips at ``indices``, as a library of their own (for a worker: no motions)."""
+        return Library([self.refs[i] for i in indices], self.resident_bytes)
+
+    def map(self, transform: Callable[[Motion], Motion]) -> "Library":
+        """This library with ``transform`` applied to each clip as it is read (``transform``
+        must pickle for a bake's workers)."""
+        def chain(ref: ClipRef) -> ClipRef:
+            return dataclasses.replace(ref, transform=transform if ref.transform is None
+                                       else _Chain(ref.transform, transform))
+        out = Library([chain(r) for r in self.refs], self.resident_bytes)
+        for i, m in self._resident.items():
+            out.keep(i, transform(m))
+        return out
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"refs": self.refs, "resident_bytes": self.resident_bytes}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["refs"], state["resident_bytes"])  # type: ignore[misc]
+
+
+@dataclass(frozen=True)
+class _Chain:
+    first: Callable[[Motion], Motion]
+    then: Callable[[Motion], Motion]
+
+    def __call__(self, motion: Motion) -> Motion:
+        return self.then(self.first(motion))
+
+
+def open_library(paths: Sequence[str | os.PathLike], rate: float | None = None,
+                 resident_bytes: int = RESIDENT_BYTES,
+                 visit: Callable[[int, Motion], None] | None = None) -> Library:
+    """The clips of ``paths`` (files or folders, as :func:`mocodec.load.load_all` reads them and
+    with the same names), each file read once here; ``visit(i, motion)`` sees each clip as it is
+    read (what a caller needs of every clip, gathered without reading it again)."""
+    from ..load import iter_clips
+
+    lib = Library([], resident_bytes)
+    for path, index, motion in iter_clips(paths, rate):
+        i = len(lib.refs)
+        lib.refs.append(ClipRef(str(path), index, motion.name, rate, motion.frame_count,
+                                motion.skeleton.node_count))
+        if visit is not None:
+            visit(i, motion)
+        lib.keep(i, motion)
+    return lib
+
+
+def clip_ref(motions: Sequence[Motion], i: int) -> "ClipRef | Motion":
+    """What a worker needs to have clip ``i`` of ``motions``: a :class:`ClipRef` for a
+    :class:`Library`, the motion itself for a list."""
+    return motions.refs[i] if isinstance(motions, Library) else motions[i]

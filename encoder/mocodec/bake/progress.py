@@ -1,0 +1,75 @@
+"""What a person watching a bake sees: one bar with clips done / total, the time left, and the
+clip each worker is on; a line per clip where stderr is not a terminal (logs stay readable).
+
+A :class:`Progress` is the ``progress`` of :meth:`~.runners.Runner.run`: called with a clip's
+name when it is done, told by ``started(name)`` when a worker takes one and by ``hit(name)``
+when one comes from the cache.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from typing import IO
+
+from ..limits import printable
+
+
+class Progress:
+    """Progress of ``total`` steps on ``stream`` (stderr); ``enabled=False`` (``--quiet``,
+    ``--json``) shows nothing. Fewer than two steps show nothing either."""
+
+    def __init__(self, total: int, enabled: bool = True, stream: IO[str] | None = None,
+                 bar: bool | None = None) -> None:
+        self.total, self.done, self.hits = total, 0, 0
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = enabled and total >= 2
+        self.started_at = time.perf_counter()
+        self.slots: dict[int, str] = {}  # worker slot -> the clip it is on
+        self._bar = None
+        if self.enabled and (bar if bar is not None else self.stream.isatty()):
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, unit="clip", file=self.stream, dynamic_ncols=True)
+
+    def started(self, name: str) -> None:
+        """A worker took clip ``name``: it gets the lowest free slot."""
+        slot = next(k for k in range(len(self.slots) + 1) if k not in self.slots)
+        self.slots[slot] = name
+        self._show()
+
+    def hit(self, name: str) -> None:
+        """Clip ``name`` came from the cache."""
+        self.hits += 1
+        self(name)
+
+    def __call__(self, name: str) -> None:
+        """Clip (or step) ``name`` is done."""
+        self.done += 1
+        for slot, running in list(self.slots.items()):
+            if running == name:
+                del self.slots[slot]
+                break
+        if self._bar is not None:
+            self._bar.update(1)
+            self._show()
+            if self.done >= self.total:
+                self.close()
+        elif self.enabled:
+            print(f"  [{self.done}/{self.total}] {printable(name)} ({time.perf_counter() - self.started_at:.1f}s)",
+                  file=self.stream, flush=True)
+
+    def postfix(self) -> str:
+        """The bar's tail: each worker's clip, and the cache hits so far."""
+        running = "  ".join(f"w{slot + 1} {printable(name)}" for slot, name in sorted(self.slots.items()))
+        hits = f"  ({self.hits} cached)" if self.hits else ""
+        return running + hits
+
+    def _show(self) -> None:
+        if self._bar is not None:
+            self._bar.set_postfix_str(self.postfix(), refresh=True)
+
+    def close(self) -> None:
+        """End the bar (a Ctrl-C ends it where it was)."""
+        bar, self._bar = self._bar, None
+        if bar is not None:
+            bar.close()
