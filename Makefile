@@ -3,7 +3,10 @@
 #   make test   every test: C (gcc, clang, ASan/UBSan, fuzz smoke), Python, engine bindings, web
 #   make web    rebuild what `mocodec view` ships: the wasm runtime and the viewer's bundle
 #   make bench  every codec beside ACL 2.1 in one process: bytes, engine bytes, open, µs per pose
-#               (bench/engine_bench.py; BENCH_ASSETS="rma:1,0.02 spline:1" ROUNDS=11 SHARED=../shared)
+#               (bench/engine_bench.py; BENCH_ASSETS="rma:1,0.02 spline:1" ROUNDS=11 SHARED=../shared),
+#               then make bench-bake
+#   make bench-bake  baking: MB/s per core per codec, 1 and 2 workers (local, Dask LocalCluster),
+#               --cache re-bake, peak memory of a 2,000-clip library (bench/bake.py; BAKE_ARGS="--fast")
 #   make unity-plugins  rebuild and test the runtime for Linux x86-64, Linux arm64 and Windows
 #               x86-64 (make -C runtime_c platforms) and copy them into unity_package/Plugins, to commit
 #   make bench-rd  the rate-distortion sweeps of rma and spline, and docs/rd_curve.png
@@ -18,8 +21,10 @@ FUZZ_SECONDS ?= 20
 BENCH_ASSETS ?= rma:1,0.02 spline:1 fk-wavelet:1 ik-predict:1 neural:1
 ROUNDS ?= 11
 SHARED ?= ../shared
+# bench-bake: bench/bake.py's arguments (--fast: a few clips, a 40-clip library, to try it out)
+BAKE_ARGS ?= --clips 12 --codec-clips 3 --clip-seconds 1
 
-.PHONY: demo test web unity-plugins venv test-c test-python test-engines bench bench-rd clean
+.PHONY: demo test web unity-plugins venv test-c test-python test-engines bench bench-bake bench-rd clean
 
 $(VENV)/.installed: encoder/pyproject.toml encoder/build_native.py $(wildcard encoder/native/*.c encoder/native/*.h) bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -53,6 +58,12 @@ unity-plugins:
 # flock /tmp/mocodec-bench.lock. Writes bench/results/engine_bench/<UTC time>.md and .json.
 bench: venv
 	MOCODEC_SHARED=$(SHARED) $(PY) bench/engine_bench.py --assets $(BENCH_ASSETS) --rounds $(ROUNDS)
+	$(MAKE) bench-bake
+
+# Each timed part holds flock /tmp/mocodec-bench.lock; writes bench/results/bake/<UTC time>.json.
+bench-bake: venv
+	@mkdir -p bench/results/bake
+	MOCODEC_SHARED=$(SHARED) nice -n 10 $(PY) bench/bake.py $(BAKE_ARGS) --json bench/results/bake/$$(date -u +%Y%m%dT%H%MZ).json
 
 bench-rd: venv
 	$(PY) bench/run_bench.py --codec rma --tolerances 0.02 0.1 0.5 1 2 3 6

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from mocodec.bake import (BakeError, ClipCache, ClipJob, ClipOutcome, ProcessRunner, SerialRunner, job_key,
-                          make_runner)
+                          make_runner, run_job)
 from mocodec.bake.fingerprint import motion_digest
 from mocodec.bake.library import ClipRef, Library, open_library
 from mocodec.bake.progress import Progress
@@ -228,6 +228,31 @@ def test_a_library_keeps_what_fits_and_pickles_without_motions(sample_paths):
     back = pickle.loads(data)
     assert back._resident == {} and motion_digest(back[1]) == motion_digest(whole[1])
     assert isinstance(back.refs[0], ClipRef) and len(whole[0:2]) == 2
+
+
+def test_a_carried_job_needs_no_file(sample_paths, tmp_path):
+    """A Dask worker may be on a machine without the input files: a job sent there carries its
+    clip's frames, in itself and in its check."""
+    import shutil
+
+    from mocodec.codecs.rma import section_prefix
+    from mocodec.encode import RuntimeCheck
+
+    path = tmp_path / sample_paths[2].name
+    shutil.copy(sample_paths[2], path)
+    lib = open_library([path], resident_bytes=0)
+    check = RuntimeCheck(lib, [5.6444], "rma").one_clip(0, section_prefix(1))
+    job = ClipJob(lib.refs[0].name, encode_clip, lib.refs[0], 5.6444, RMASettings(Tolerance(TOL)), check)
+    carried = job.carried()
+    path.unlink()
+    assert carried.carried() is carried and isinstance(carried.motion, type(load_all(sample_paths[2:])[0]))
+    expected = encode_clip(load_all(sample_paths[2:])[0], 5.6444, RMASettings(Tolerance(TOL)),
+                           RuntimeCheck(load_all(sample_paths[2:]), [5.6444], "rma").one_clip(0, section_prefix(1)))
+    assert run_job(carried).payload == expected.payload
+    from mocodec.io import BVHError
+
+    with pytest.raises(BVHError, match="no such file|not found|No such"):
+        run_job(job)  # the ref alone needs the file
 
 
 def test_the_spool_gives_back_each_payload_and_leaves_no_file(tmp_path, monkeypatch):

@@ -304,3 +304,38 @@ def test_rma_pca_without_a_variance_states_its_promise(tmp_path, sample_paths, m
     err = capsys.readouterr().err
     assert "PCA keeping its default share of the variance" in err
     assert "mocodec: error: stopped after the promise line" in err
+
+
+def test_encode_json_has_the_bake_summary(sample_paths, tmp_path):
+    out, cache = tmp_path / "s.mcd", tmp_path / "cache"
+    args = ["encode", *map(str, sample_paths[:2]), "-o", str(out), "-t", "2", "--units", "cmu", "--json",
+            "--jobs", "2", "--cache", str(cache)]
+    summaries = []
+    for _ in range(2):  # a clean bake, then one from the cache
+        r = run(*args)
+        assert r.returncode == 0 and r.stderr == "", r.stderr
+        data = json.loads(r.stdout)
+        summaries.append(data["bake"])
+    first, again = summaries
+    assert set(first) == {"clips", "bytes", "seconds", "workers", "mb_per_s", "bvh_mb_per_s", "cache_hits",
+                          "error", "peak_rss_mb"}
+    assert first["clips"] == 2 and first["bytes"] == out.stat().st_size == data["size"]["asset_bytes"]
+    assert first["workers"] == 2 and first["seconds"] > 0
+    assert first["mb_per_s"] == pytest.approx(data["size"]["raw_acl_bytes"] / 1e6 / first["seconds"], rel=1e-2)
+    assert first["bvh_mb_per_s"] == pytest.approx(data["size"]["raw_bvh_bytes"] / 1e6 / first["seconds"], rel=1e-2)
+    assert list(first["error"]) == ["rma"] and 0 < first["error"]["rma"]["max_cm"] <= 2.0
+    assert first["peak_rss_mb"]["main"] > 0 and first["peak_rss_mb"]["largest_worker"] > 0
+    assert (first["cache_hits"], again["cache_hits"]) == (0, 2) and again["error"] == first["error"]
+
+
+def test_progress_is_a_line_per_clip_off_a_terminal_and_off_under_quiet(sample_paths, tmp_path, capsys):
+    out = str(tmp_path / "x.mcd")
+    base = ["encode", *map(str, sample_paths), "-o", out, "-t", "2", "--units", "cmu", "--jobs", "1"]
+    assert main(base) == 0
+    err = capsys.readouterr().err
+    assert [line.split("]")[0].strip() for line in err.splitlines() if line.startswith("  [")] == \
+        ["[1/3", "[2/3", "[3/3"]
+    assert main(base + ["--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(base + ["--json"]) == 0
+    assert capsys.readouterr().err == ""

@@ -6,7 +6,6 @@ and reports sizes and errors. A tolerance that is not met is an error, never a s
 """
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -101,15 +100,30 @@ class RuntimeCheck:
         _, pos = decode_world(asset, 0)
         return np.linalg.norm(pos - self._originals[i], axis=-1)
 
-    def one_clip(self, i: int, prefix: bytes = b"") -> Callable[[bytes], np.ndarray]:
+    def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":
         """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
         from .bake.library import Library
 
         one = self.motions.subset([i]) if isinstance(self.motions, Library) else [self.motions[i]]
-        return functools.partial(RuntimeCheck(one, [self.cm_per_unit[i]], self.codec), 0, prefix=prefix)
+        return OneClipCheck(RuntimeCheck(one, [self.cm_per_unit[i]], self.codec), prefix)
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_originals": {}, "_halfway": {}}
+
+
+@dataclass
+class OneClipCheck:
+    """``check(payload, halfway=False)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
+
+    runtime: RuntimeCheck
+    prefix: bytes = b""
+
+    def __call__(self, payload: bytes, **how: Any) -> np.ndarray:
+        return self.runtime(0, payload, prefix=self.prefix, **how)
+
+    def carrying(self, motion: Motion) -> "OneClipCheck":
+        """This check with the clip's frames in it (for a worker that cannot read its file)."""
+        return OneClipCheck(RuntimeCheck([motion], self.runtime.cm_per_unit, self.runtime.codec), self.prefix)
 
 
 def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> codecs.CheckFn:

@@ -50,8 +50,8 @@ class Progress:
                 del self.slots[slot]
                 break
         if self._bar is not None:
+            self._bar.set_postfix_str(self.postfix(), refresh=False)
             self._bar.update(1)
-            self._show()
             if self.done >= self.total:
                 self.close()
         elif self.enabled:

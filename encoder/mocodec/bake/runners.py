@@ -82,6 +82,15 @@ class ClipJob:
         """The clip (read from its file for a ref)."""
         return self.motion.load() if isinstance(self.motion, ClipRef) else self.motion
 
+    def carried(self) -> "ClipJob":
+        """This job with the clip's frames in it, and in its check, rather than a ref to its
+        file (for workers on other machines)."""
+        if not isinstance(self.motion, ClipRef):
+            return self
+        motion = self.load()
+        carrying = getattr(self.check, "carrying", None)
+        return dataclasses.replace(self, motion=motion, check=carrying(motion) if carrying else self.check)
+
 
 @dataclass
 class ClipOutcome:
@@ -325,10 +334,11 @@ class DaskRunner(Runner):
 
         def submit(job: ClipJob) -> Any:
             with warnings.catch_warnings():
-                # A clip's frames may be its task's argument: a long clip is a large one, by design.
+                # A clip's frames are its task's argument (a long clip is a large one, by design):
+                # a worker needs no access to the input files.
                 warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
-                f = self.client.submit(run_job, dataclasses.replace(job, fingerprint=fingerprint), pure=False,
-                                       key=f"mocodec-clip-{os.urandom(8).hex()}")
+                f = self.client.submit(run_job, dataclasses.replace(job.carried(), fingerprint=fingerprint),
+                                       pure=False, key=f"mocodec-clip-{os.urandom(8).hex()}")
             in_flight.add(f)
             finished.add(f)
             return f
