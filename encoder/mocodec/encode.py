@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -153,7 +153,7 @@ def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsCh
 
 
 def encode_motions(
-    motions: list[Motion],
+    motions: Sequence[Motion],
     units: "list[UnitsChoice]",
     codec: str = DEFAULT_CODEC,
     tolerance: Tolerance | None = None,
@@ -162,7 +162,9 @@ def encode_motions(
     contacts: bool = False,
     runner: "Runner | None" = None,
 ) -> EncodeResult:
-    """Encode ``motions`` (one clip each) into one asset and measure it through the runtime.
+    """Encode ``motions`` (one clip each: a list, or a streamed library that reads its clips
+when needed, :func:`mocodec.bake.library.open_library`, same bytes) into one asset and measure
+it through the runtime.
 
     ``contacts`` adds foot contact trajectories (a ``CNTC`` section, :mod:`mocodec.contacts`)
     and measures every error with them applied by the runtime's IK. ``runner`` encodes the
