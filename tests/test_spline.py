@@ -70,16 +70,27 @@ def test_dev_set_meets_one_cm_on_every_frame(shared_cmu_dir):
 def test_c_runtime_and_python_reference_agree(sample_paths):
     """Every frame and points between frames: C (float32) vs the format read in Python."""
     m = read_bvh(sample_paths[1])
-    result = _encode([m], 0.5)
-    asset = Asset(result.asset)
+    _assert_c_matches_reference(_encode([m], 0.5).asset, m)
+
+
+def _assert_c_matches_reference(asset_bytes: bytes, m: Motion) -> None:
+    asset = Asset(asset_bytes)
     info = asset.clips[0]
-    payload = _payload_of(result.asset)
-    x = np.concatenate((np.arange(m.frame_count), np.linspace(0, m.frame_count - 1, 997)))
+    payload = _payload_of(asset_bytes)
+    between = np.linspace(0, m.frame_count - 1, 997)
+    times = (np.concatenate((np.arange(m.frame_count), between)) / info.frame_rate).astype(np.float32)
+    # Between frames, the reference samples where the runtime does: at the float32 time times
+    # the rate (a fast-spinning joint moves measurably within a float32 time step).
+    seen = (times[m.frame_count:] * np.float32(info.frame_rate)).astype(np.float64)
+    x = np.concatenate((np.arange(m.frame_count), seen))
     rot_py, trans_py = decode_payload(payload, m.skeleton, x)
-    poses = asset.sample_times(0, (x / info.frame_rate).astype(np.float32))
+    poses = asset.sample_times(0, times)
     rot_c, trans_c = poses[..., :4].astype(np.float64), poses[..., 4:7].astype(np.float64)
     sign = np.sign(np.sum(rot_c * rot_py, axis=-1, keepdims=True))
-    assert np.abs(rot_c - sign * rot_py).max() <= 1e-5
+    # float32 holds an unwrapped twist angle to its ulp: a few of them at the largest angle.
+    turned = max([np.abs(mins[0]) + (2.0 ** bits[0]) * steps[0] for mins, steps, bits in _twist_descriptors(payload)],
+                 default=0.0)
+    assert np.abs(rot_c - sign * rot_py).max() <= 1e-5 + 2.0 ** -22 * turned
     assert np.abs(trans_c - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
     assert np.all(poses[..., 7:] == 1.0)  # the rest scale: a BVH skeleton has none
 
@@ -201,3 +212,48 @@ def test_short_clips_and_block_boundaries(frames, codec):
     rows[:, 12:15] = 60 * t[:, None]
     m = parse_bvh(_bvh(CHAIN, rows), name=f"short{frames}")
     _check(m, 0.1, codec)
+
+
+def _twist_descriptors(payload: bytes) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(minimum, step, bits) of every twist track: twist angle, then swing MRPs (docs/FORMAT.md,
+    SPLN)."""
+    import struct
+
+    nodes, tracks = struct.unpack_from("<II", payload, 4)
+    pos = 32 + 8 * nodes + 4 * struct.unpack_from("<I", payload, 20)[0]
+    out = []
+    for _ in range(tracks):
+        kind = payload[pos]
+        if kind == 2:
+            bits = np.frombuffer(payload, np.uint8, 4, pos + 1).astype(np.int64)
+            mins = np.frombuffer(payload, "<f4", 4, pos + 8).astype(np.float64)
+            steps = np.frombuffer(payload, "<f4", 4, pos + 24).astype(np.float64)
+            out.append((mins, steps, bits))
+        pos += {1: 36, 2: 56, 3: 28}[kind]
+    return out
+
+
+def test_twist_whose_swing_goes_round_keeps_bounded_parameters():
+    """A leg spinning about its bone 40 times while its swing bends to 179.9 degrees: the swing
+    left after the twist takes a path that goes round to its reference's antipode (what a long
+    capture's foot did: MRPs of 2e5 on 20 minutes of the dev takes, past the 24-bit keys).
+    Each frame's swing is kept on the reference's hemisphere (mocodec.swing_hemisphere):
+    the clip encodes within the tolerance, C and the Python reference agree, and the stored
+    swing stays within |p| <= 1. (Before, the encoder wrote an asset its own check refused.)"""
+    f = 3000
+    t = np.linspace(0, 1, f)
+    rows = np.zeros((f, 15))
+    rows[:, 1] = 90
+    rows[:, 12] = 14400 * t                                   # Leg Y: the twist, 40 turns
+    rows[:, 13] = 179.9 * (0.5 - 0.5 * np.cos(np.pi * t))     # Leg Z: the swing, to 179.9 degrees
+    rows[:, 14] = 20 * np.sin(7 * np.pi * t)
+    m = parse_bvh(_bvh(CHAIN, rows), name="swing_round")
+    result = encode_motions([m], [resolve_units(m.skeleton, "cm", None)], "spline", Tolerance(0.5))
+    assert _world_error_cm(Asset(result.asset), m, 1.0).max() <= 0.5
+    _assert_c_matches_reference(result.asset, m)
+    twists = _twist_descriptors(_payload_of(result.asset))
+    assert twists, "the leg is a twist track"
+    for mins, steps, bits in twists:
+        # bits = ceil(log2(levels + 1)): the quantized span is at least 2**(bits - 1) steps.
+        span = 2.0 ** (bits[1:] - 1) * steps[1:]
+        assert np.all(mins[1:] >= -1.0) and np.all(span <= 2.0 + steps[1:]), (mins, steps, bits)
