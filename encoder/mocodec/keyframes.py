@@ -110,6 +110,7 @@ class Track:
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (inf: not held)
+    fitted: tuple[np.ndarray, np.ndarray] | None = None  # (values, budget) its keys were last fitted to (local refits)
 
     @property
     def is_rotation(self) -> bool:
@@ -228,14 +229,33 @@ def halfway_target(track: Track) -> np.ndarray:
     return mid / np.linalg.norm(mid, axis=1, keepdims=True)
 
 
+def untouched_keys(track: Track) -> np.ndarray | None:
+    """The keys of a fitted track whose curve segments (keys i - 2 ... i + 2) see no frame
+    whose value or budget changed since the fit (None when it was not fitted, or is held
+    half-way): a local refit keeps them, so that the curve changes only where it has to."""
+    if track.fitted is None or track.keys is None or track.half_budget is not None:
+        return None
+    values, budget = track.fitted
+    if values.shape != track.values.shape:
+        return None
+    dirty = (budget != track.budget) | np.any(values != track.values, axis=1)
+    keys = np.asarray(track.keys, dtype=np.int64)
+    seen = np.concatenate(([0], np.cumsum(dirty)))
+    idx = np.arange(len(keys))
+    lo = keys[np.maximum(idx - 2, 0)]
+    hi = keys[np.minimum(idx + 2, len(keys) - 1)]
+    return keys[seen[hi + 1] == seen[lo]]
+
+
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
-              quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
+              quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
+              keep: np.ndarray | None = None) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
     ``half_budget`` is held to its target's half-way path too (constants are judged on the
     frames: half-way, a constant is as far from the target as on one of the two frames at
-    most)."""
+    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`)."""
     err = _track_error(track)
     frames = len(track.values)
     half_budget = track.half_budget if frames > 1 else None
@@ -256,6 +276,8 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
             track.keys, track.quantizer, track.constant, track.recon = None, None, const, None
             return
     track.constant = None
+    if keep is not None and len(keep):
+        mandatory = np.union1d(mandatory, keep)
     while True:
         step = _quant_steps(track, fraction)
         try:
@@ -425,6 +447,10 @@ class KeyframeFitter:
     quantizer_for = staticmethod(Quantizer.for_range)
     key_grid = 1
     split = False  # whether the codec's curves detach their first segment (``Track.split``)
+    # Refits that change a track only where its target or budgets did: the reference rotation
+    # kept (_retarget_kept), the keys elsewhere kept (untouched_keys). Otherwise every refit
+    # re-derives the track and may move keys anywhere, and a long clip's repairs never settle.
+    local_refits = False
 
     def mandatory_keys(self) -> np.ndarray:
         """Frames every track keys."""
@@ -445,7 +471,10 @@ class KeyframeFitter:
 
     # -------------------------------------------------------------- passes
     def _fit(self, track: Track) -> None:
-        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
+        keep = untouched_keys(track) if self.local_refits else None
+        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
+        if self.local_refits:
+            track.fitted = (track.values, track.budget.copy())
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -471,7 +500,8 @@ class KeyframeFitter:
                 t = tracks[key]
                 if key in refit or parent_moved or t.target is None:
                     target = comp.rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
-                    _retarget(t, target, self.motion, i)
+                    if not (self.local_refits and _retarget_kept(t, target)):
+                        _retarget(t, target, self.motion, i)
                     self._fit(t)
                 local_q = _track_recon(t)
             else:  # the rest rotation on every frame (identity for BVH)
@@ -632,6 +662,24 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
         raise ToleranceNotMet(f"clip {motion.name!r}: " + "; ".join(failures))
     best.seconds = time.perf_counter() - started
     return best
+
+
+def _retarget_kept(track: Track, target: np.ndarray) -> bool:
+    """Give an MRP rotation track a new local target in its own parameterisation (the same
+    reference, each frame on the hemisphere it had), so that its values change only where
+    the target did; False, the track untouched, when it has none yet, is a twist, or the new
+    target strays past :data:`TWIST_MRP_LIMIT` from the reference."""
+    if track.kind != KIND_MRP or track.target is None or track.target.shape != target.shape:
+        return False
+    q = np.array(target, dtype=np.float64)
+    q[np.sum(q * track.target, axis=1) < 0.0] *= -1.0
+    rel = R.quat_multiply(R.quat_conjugate(track.ref), q)
+    rel[np.sum(rel * R.quat_from_mrp(track.values), axis=1) < 0.0] *= -1.0
+    p = R.mrp_from_quat(rel)
+    if np.max(np.linalg.norm(p, axis=1)) > TWIST_MRP_LIMIT:
+        return False
+    track.values, track.target, track.recon = p, q, None
+    return True
 
 
 def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> None:
