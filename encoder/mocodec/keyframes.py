@@ -413,20 +413,24 @@ class Compensation:
                 lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
         return TrackReach(affects, lever, np.asarray(self.track_is_rot, dtype=bool))
 
-    def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray) -> np.ndarray:
+    def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray,
+                        rows: np.ndarray | None = None) -> np.ndarray:
         """Local rotation (F, 4) that best places node i's aim points given the decoded
-        parent rotation (None for a root) and the decoded position of i."""
-        orig = self.rot_w[:, i]
+        parent rotation (None for a root) and the decoded position of i; on frames ``rows``
+        only (parent_rot and pos_i given there) when not None."""
+        frames = slice(None) if rows is None else rows
+        orig = self.rot_w[frames, i]
+        pos_w = self.pos_w[frames]
         vs, us, ws = [], [], []
         inv = R.quat_conjugate(orig)
         for c in self.aim[i]:
-            vs.append(R.quat_rotate(inv, self.pos_w[:, c] - self.pos_w[:, i]))
-            us.append(self.pos_w[:, c] - pos_i)
+            vs.append(R.quat_rotate(inv, pos_w[:, c] - pos_w[:, i]))
+            us.append(pos_w[:, c] - pos_i)
             ws.append(1.0)
         for k in range(3):
             e = np.zeros(3)
             e[k] = self.shell
-            vs.append(np.broadcast_to(e, (self.frames, 3)))
+            vs.append(np.broadcast_to(e, (len(orig), 3)))
             us.append(R.quat_rotate(orig, e))
             ws.append(0.25 if self.aim[i] else 1.0)
         world = R.quat_make_continuous(native.wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws), orig))
@@ -486,6 +490,8 @@ class KeyframeFitter:
         pos_d = np.empty((self.frames, n, 3))
         scale_d = np.empty((self.frames, n, 3))
         moved = np.zeros(n, dtype=bool)
+        prev = self._decoded
+        rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
@@ -498,8 +504,19 @@ class KeyframeFitter:
             key = (i, ROT)
             if key in tracks:
                 t = tracks[key]
-                if key in refit or parent_moved or t.target is None:
-                    target = comp.rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
+                parent_rot = rot_d[:, p] if p >= 0 else None
+                if self.local_refits and t.target is not None and prev is not None:
+                    # Only the frames whose decoded parent or position moved get a new target.
+                    rows = np.flatnonzero(np.any(prev[1][:, i] != pos_d[:, i], axis=1)
+                                          | (rot_moved[:, p] if p >= 0 else False))
+                    if len(rows):
+                        target = comp.rotation_target(i, None if p < 0 else parent_rot[rows], pos_d[rows, i], rows)
+                        if not _retarget_kept(t, target, rows):
+                            _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
+                    if len(rows) or key in refit:
+                        self._fit(t)
+                elif key in refit or parent_moved or t.target is None:
+                    target = comp.rotation_target(i, parent_rot, pos_d[:, i])
                     if not (self.local_refits and _retarget_kept(t, target)):
                         _retarget(t, target, self.motion, i)
                     self._fit(t)
@@ -510,10 +527,11 @@ class KeyframeFitter:
             # Scale (not compensated: its target is the original).
             local_s = self._vector_part(tracks, refit, i, SCALE, sk.rest_scales[i])
             scale_d[:, i] = local_s if p < 0 else scale_d[:, p] * local_s
-            prev = self._decoded
             moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i])
                                             and np.array_equal(prev[1][:, i], pos_d[:, i])
                                             and np.array_equal(prev[2][:, i], scale_d[:, i]))
+            if self.local_refits and prev is not None and moved[i]:
+                rot_moved[:, i] = np.any(prev[0][:, i] != rot_d[:, i], axis=1)
         self._decoded = (rot_d, pos_d, scale_d)
 
     def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
@@ -664,21 +682,37 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
     return best
 
 
-def _retarget_kept(track: Track, target: np.ndarray) -> bool:
-    """Give an MRP rotation track a new local target in its own parameterisation (the same
-    reference, each frame on the hemisphere it had), so that its values change only where
-    the target did; False, the track untouched, when it has none yet, is a twist, or the new
-    target strays past :data:`TWIST_MRP_LIMIT` from the reference."""
-    if track.kind != KIND_MRP or track.target is None or track.target.shape != target.shape:
+def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = None) -> bool:
+    """Give a rotation track a new local target (F, 4), or new targets on frames ``rows``
+    only (then ``target`` is (len(rows), 4)), in its own parameterisation: the same reference
+    and twist axis, each frame on the hemisphere (and a twist on the turn) it had, so that its
+    values change only where the target did. False, the track untouched, when it has no
+    parameterisation yet or a new value strays past :data:`TWIST_MRP_LIMIT` from the
+    reference."""
+    if track.target is None or track.kind not in (KIND_MRP, KIND_TWIST):
+        return False
+    at = slice(None) if rows is None else rows
+    old_q, old_v = track.target[at], track.values[at]
+    if old_q.shape != np.shape(target):
         return False
     q = np.array(target, dtype=np.float64)
-    q[np.sum(q * track.target, axis=1) < 0.0] *= -1.0
-    rel = R.quat_multiply(R.quat_conjugate(track.ref), q)
-    rel[np.sum(rel * R.quat_from_mrp(track.values), axis=1) < 0.0] *= -1.0
+    q[np.sum(q * old_q, axis=1) < 0.0] *= -1.0
+    rest, old_p = q, old_v
+    if track.kind == KIND_TWIST:
+        half = np.arctan2(q[:, :3] @ track.axis, q[:, 3])
+        half += 2.0 * np.pi * np.rint((0.5 * old_v[:, 0] - half) / (2.0 * np.pi))
+        theta = 2.0 * half
+        rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(track.axis, theta)), q)
+        old_p = old_v[:, 1:]
+    rel = R.quat_multiply(R.quat_conjugate(track.ref), rest)
+    rel[np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0] *= -1.0
     p = R.mrp_from_quat(rel)
-    if np.max(np.linalg.norm(p, axis=1)) > TWIST_MRP_LIMIT:
+    if len(p) and np.max(np.linalg.norm(p, axis=1)) > TWIST_MRP_LIMIT:
         return False
-    track.values, track.target, track.recon = p, q, None
+    values, full = track.values.copy(), track.target.copy()
+    values[at] = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    full[at] = q
+    track.values, track.target, track.recon = values, full, None
     return True
 
 
