@@ -516,9 +516,7 @@ class KeyframeFitter:
                     if len(rows) or key in refit:
                         self._fit(t)
                 elif key in refit or parent_moved or t.target is None:
-                    target = comp.rotation_target(i, parent_rot, pos_d[:, i])
-                    if not (self.local_refits and _retarget_kept(t, target)):
-                        _retarget(t, target, self.motion, i)
+                    _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
                     self._fit(t)
                 local_q = _track_recon(t)
             else:  # the rest rotation on every frame (identity for BVH)
