@@ -46,7 +46,8 @@ def test_half_frames_held_to_the_tolerance_where_asked(sample_paths, codec):
           f"max {err_free[keep].max():.3f} -> {err_held[keep].max():.3f} cm")
     # Without the hold the curves swing past the tolerance half-way: the test can fail. With
     # it they keep to it but where an interval is released (HalfwayHold.RELEASE_AFTER).
-    assert over_free >= 4
+    # (07_01 at 0.3 cm, free: rma 3 half frames over since its local refits, 8 before; spline 4.)
+    assert over_free >= 3
     assert over_held <= over_free // 4
     assert err_held[keep].max() <= 1.5 * tol
     assert held.max_error_cm <= tol  # and the frames keep their promise

@@ -110,6 +110,7 @@ class Track:
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (inf: not held)
+    fitted: tuple[np.ndarray, np.ndarray] | None = None  # (values, budget) its keys were last fitted to (local refits)
 
     @property
     def is_rotation(self) -> bool:
@@ -228,14 +229,33 @@ def halfway_target(track: Track) -> np.ndarray:
     return mid / np.linalg.norm(mid, axis=1, keepdims=True)
 
 
+def untouched_keys(track: Track) -> np.ndarray | None:
+    """The keys of a fitted track whose curve segments (keys i - 2 ... i + 2) see no frame
+    whose value or budget changed since the fit (None when it was not fitted, or is held
+    half-way): a local refit keeps them, so that the curve changes only where it has to."""
+    if track.fitted is None or track.keys is None or track.half_budget is not None:
+        return None
+    values, budget = track.fitted
+    if values.shape != track.values.shape:
+        return None
+    dirty = (budget != track.budget) | np.any(values != track.values, axis=1)
+    keys = np.asarray(track.keys, dtype=np.int64)
+    seen = np.concatenate(([0], np.cumsum(dirty)))
+    idx = np.arange(len(keys))
+    lo = keys[np.maximum(idx - 2, 0)]
+    hi = keys[np.minimum(idx + 2, len(keys) - 1)]
+    return keys[seen[hi + 1] == seen[lo]]
+
+
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
-              quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1) -> None:
+              quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
+              keep: np.ndarray | None = None) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
     ``half_budget`` is held to its target's half-way path too (constants are judged on the
     frames: half-way, a constant is as far from the target as on one of the two frames at
-    most)."""
+    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`)."""
     err = _track_error(track)
     frames = len(track.values)
     half_budget = track.half_budget if frames > 1 else None
@@ -256,6 +276,8 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
             track.keys, track.quantizer, track.constant, track.recon = None, None, const, None
             return
     track.constant = None
+    if keep is not None and len(keep):
+        mandatory = np.union1d(mandatory, keep)
     while True:
         step = _quant_steps(track, fraction)
         try:
@@ -391,20 +413,24 @@ class Compensation:
                 lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
         return TrackReach(affects, lever, np.asarray(self.track_is_rot, dtype=bool))
 
-    def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray) -> np.ndarray:
+    def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray,
+                        rows: np.ndarray | None = None) -> np.ndarray:
         """Local rotation (F, 4) that best places node i's aim points given the decoded
-        parent rotation (None for a root) and the decoded position of i."""
-        orig = self.rot_w[:, i]
+        parent rotation (None for a root) and the decoded position of i; on frames ``rows``
+        only (parent_rot and pos_i given there) when not None."""
+        frames = slice(None) if rows is None else rows
+        orig = self.rot_w[frames, i]
+        pos_w = self.pos_w[frames]
         vs, us, ws = [], [], []
         inv = R.quat_conjugate(orig)
         for c in self.aim[i]:
-            vs.append(R.quat_rotate(inv, self.pos_w[:, c] - self.pos_w[:, i]))
-            us.append(self.pos_w[:, c] - pos_i)
+            vs.append(R.quat_rotate(inv, pos_w[:, c] - pos_w[:, i]))
+            us.append(pos_w[:, c] - pos_i)
             ws.append(1.0)
         for k in range(3):
             e = np.zeros(3)
             e[k] = self.shell
-            vs.append(np.broadcast_to(e, (self.frames, 3)))
+            vs.append(np.broadcast_to(e, (len(orig), 3)))
             us.append(R.quat_rotate(orig, e))
             ws.append(0.25 if self.aim[i] else 1.0)
         world = R.quat_make_continuous(native.wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws), orig))
@@ -425,6 +451,10 @@ class KeyframeFitter:
     quantizer_for = staticmethod(Quantizer.for_range)
     key_grid = 1
     split = False  # whether the codec's curves detach their first segment (``Track.split``)
+    # Refits that change a track only where its target or budgets did: the reference rotation
+    # kept (_retarget_kept), the keys elsewhere kept (untouched_keys). Otherwise every refit
+    # re-derives the track and may move keys anywhere, and a long clip's repairs never settle.
+    local_refits = False
 
     def mandatory_keys(self) -> np.ndarray:
         """Frames every track keys."""
@@ -445,7 +475,10 @@ class KeyframeFitter:
 
     # -------------------------------------------------------------- passes
     def _fit(self, track: Track) -> None:
-        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid)
+        keep = untouched_keys(track) if self.local_refits else None
+        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
+        if self.local_refits:
+            track.fitted = (track.values, track.budget.copy())
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -457,6 +490,8 @@ class KeyframeFitter:
         pos_d = np.empty((self.frames, n, 3))
         scale_d = np.empty((self.frames, n, 3))
         moved = np.zeros(n, dtype=bool)
+        prev = self._decoded
+        rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
@@ -469,9 +504,19 @@ class KeyframeFitter:
             key = (i, ROT)
             if key in tracks:
                 t = tracks[key]
-                if key in refit or parent_moved or t.target is None:
-                    target = comp.rotation_target(i, rot_d[:, p] if p >= 0 else None, pos_d[:, i])
-                    _retarget(t, target, self.motion, i)
+                parent_rot = rot_d[:, p] if p >= 0 else None
+                if self.local_refits and t.target is not None and prev is not None:
+                    # Only the frames whose decoded parent or position moved get a new target.
+                    rows = np.flatnonzero(np.any(prev[1][:, i] != pos_d[:, i], axis=1)
+                                          | (rot_moved[:, p] if p >= 0 else False))
+                    if len(rows):
+                        target = comp.rotation_target(i, None if p < 0 else parent_rot[rows], pos_d[rows, i], rows)
+                        if not _retarget_kept(t, target, rows):
+                            _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
+                    if len(rows) or key in refit:
+                        self._fit(t)
+                elif key in refit or parent_moved or t.target is None:
+                    _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
                     self._fit(t)
                 local_q = _track_recon(t)
             else:  # the rest rotation on every frame (identity for BVH)
@@ -480,10 +525,11 @@ class KeyframeFitter:
             # Scale (not compensated: its target is the original).
             local_s = self._vector_part(tracks, refit, i, SCALE, sk.rest_scales[i])
             scale_d[:, i] = local_s if p < 0 else scale_d[:, p] * local_s
-            prev = self._decoded
             moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i])
                                             and np.array_equal(prev[1][:, i], pos_d[:, i])
                                             and np.array_equal(prev[2][:, i], scale_d[:, i]))
+            if self.local_refits and prev is not None and moved[i]:
+                rot_moved[:, i] = np.any(prev[0][:, i] != rot_d[:, i], axis=1)
         self._decoded = (rot_d, pos_d, scale_d)
 
     def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
@@ -632,6 +678,40 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
         raise ToleranceNotMet(f"clip {motion.name!r}: " + "; ".join(failures))
     best.seconds = time.perf_counter() - started
     return best
+
+
+def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = None) -> bool:
+    """Give a rotation track a new local target (F, 4), or new targets on frames ``rows``
+    only (then ``target`` is (len(rows), 4)), in its own parameterisation: the same reference
+    and twist axis, each frame on the hemisphere (and a twist on the turn) it had, so that its
+    values change only where the target did. False, the track untouched, when it has no
+    parameterisation yet or a new value strays past :data:`TWIST_MRP_LIMIT` from the
+    reference."""
+    if track.target is None or track.kind not in (KIND_MRP, KIND_TWIST):
+        return False
+    at = slice(None) if rows is None else rows
+    old_q, old_v = track.target[at], track.values[at]
+    if old_q.shape != np.shape(target):
+        return False
+    q = np.array(target, dtype=np.float64)
+    q[np.sum(q * old_q, axis=1) < 0.0] *= -1.0
+    rest, old_p = q, old_v
+    if track.kind == KIND_TWIST:
+        half = np.arctan2(q[:, :3] @ track.axis, q[:, 3])
+        half += 2.0 * np.pi * np.rint((0.5 * old_v[:, 0] - half) / (2.0 * np.pi))
+        theta = 2.0 * half
+        rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(track.axis, theta)), q)
+        old_p = old_v[:, 1:]
+    rel = R.quat_multiply(R.quat_conjugate(track.ref), rest)
+    rel[np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0] *= -1.0
+    p = R.mrp_from_quat(rel)
+    if len(p) and np.max(np.linalg.norm(p, axis=1)) > TWIST_MRP_LIMIT:
+        return False
+    values, full = track.values.copy(), track.target.copy()
+    values[at] = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    full[at] = q
+    track.values, track.target, track.recon = values, full, None
+    return True
 
 
 def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> None:

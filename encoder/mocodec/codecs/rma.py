@@ -113,6 +113,7 @@ class RMAFitter(KeyframeFitter):
     """The key-frame engine with free key times and lattice quantization."""
 
     quantizer_for = staticmethod(StepQuantizer.for_range)
+    local_refits = True
 
     def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings) -> None:
         self.split = frame0_jumps(motion, cm_per_unit)
