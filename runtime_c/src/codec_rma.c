@@ -8,7 +8,7 @@
  * its residual from the chord between the group's anchor and the next, so any key's value is
  * one read (an escaped residual, rare, a short walk to its outlier). A random access reads the
  * four keys around x; sequential playback keeps them in the scratch and reads one key per key
- * interval. */
+ * interval, and a step forward of up to three keys (a game tick) reads just those keys. */
 #include <string.h>
 
 #include "internal.h"
@@ -233,21 +233,22 @@ typedef struct group_view {
     int32_t a0[4], d[4];  /* its anchor, and the next one's difference from it */
 } group_view;
 
-/* The anchor of row e (the key e * G, or the last key for the last row). */
+/* The anchor of row e (the key e * G, or the last key for the last row). Components past the
+ * track's have 0 bits and read 0, so the loop has no branch on the kind. */
 static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
     uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
     uint32_t c;
-    a[3] = 0;
     if (t->anchor_bits <= 57u) { /* one load for all components */
         uint64_t w = mcd_rd_u64(p + t->table + (size_t)(bit >> 3)) >> (bit & 7u);
-        for (c = 0; c < t->dims; ++c) {
+        for (c = 0; c < 4u; ++c) {
             uint32_t n = t->abits[c];
-            uint64_t sign = (uint64_t)1 << (n - 1u), u = w & ((sign << 1) - 1u);
+            uint64_t u = w & (((uint64_t)1 << n) - 1u), sign = ((uint64_t)1 << n) >> 1;
             a[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
             w >>= n;
         }
         return;
     }
+    a[3] = 0;
     for (c = 0; c < t->dims; ++c) {
         a[c] = mcd_read_signed(p + t->table, bit, t->abits[c]);
         bit += t->abits[c];
@@ -260,9 +261,9 @@ static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, grou
     uint32_t c, at = 0, widths, first = e << t->group_shift;
     g->row = e;
     g->bit = mcd_read_bits(table, bit, t->offset_bits);
-    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims);
+    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims); /* 0 past the track's */
     for (c = 0; c < 4u; ++c) {
-        uint32_t w = c < t->dims ? (widths >> (WIDTH_BITS * c)) & 15u : 0u;
+        uint32_t w = (widths >> (WIDTH_BITS * c)) & 15u;
         g->width[c] = (uint8_t)w;
         g->shift[c] = (uint8_t)at;
         at += w;
@@ -273,7 +274,7 @@ static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, grou
         int32_t a1[4];
         g->span = t->keys - 1u - first < (1u << t->group_shift) ? t->keys - 1u - first : 1u << t->group_shift;
         row_anchor(p, t, e + 1u, a1);
-        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 in valid payloads */
+        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 */
     } else {
         g->span = 0;
         memset(g->d, 0, sizeof g->d);
@@ -322,14 +323,19 @@ static int32_t outlier(const uint8_t* data, const track_layout* t, const group_v
     return mcd_read_signed(data, at, t->abits[c]);
 }
 
-/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read. */
+/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read;
+ * row e's anchor is also the end of group e - 1. */
 static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int32_t q[4]) {
-    const uint8_t* data = p + t->data;
-    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, bit, full;
+    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full, escapes = 0;
     uint64_t w;
     if (i == 0) { /* an anchor */
-        if (g->row == e) memcpy(q, g->a0, 4u * sizeof q[0]);
-        else row_anchor(p, t, e, q);
+        if (g->row == e) {
+            memcpy(q, g->a0, 4u * sizeof q[0]);
+        } else if (g->row != UINT32_MAX && g->row + 1u == e) {
+            for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+        } else {
+            row_anchor(p, t, e, q);
+        }
         return;
     }
     if (g->row != e) group_load(p, t, e, g);
@@ -337,25 +343,21 @@ static void key_value(const uint8_t* p, const track_layout* t, group_view* g, ui
         for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
         return;
     }
-    bit = g->bit + (i - 1u) * g->rec_bits;
-    w = record_word(data, g, bit);
+    w = record_word(p + t->data, g, g->bit + (i - 1u) * g->rec_bits);
     full = g->span == (1u << t->group_shift);
     q[3] = 0;
     for (c = 0; c < t->dims; ++c) {
-        uint32_t wc = g->width[c];
-        int64_t pred = (int64_t)g->d[c] * (int64_t)i;
-        pred = g->a0[c] + (full ? floor_shift(pred, t->group_shift) : floor_div(pred, (int64_t)g->span));
-        if (wc) {
-            uint32_t sign = (uint32_t)1 << (wc - 1u), u = (uint32_t)(w >> g->shift[c]) & ((sign << 1) - 1u);
-            if (u == sign) { /* escaped: rare */
-                q[c] = outlier(data, t, g, i, c);
-                continue;
-            }
-            pred += (int64_t)(u ^ sign) - (int64_t)sign;
-        }
+        uint32_t wc = g->width[c], sign = ((uint32_t)1 << wc) >> 1, u = (uint32_t)w & (((uint32_t)1 << wc) - 1u);
+        int64_t v = (int64_t)g->d[c] * (int64_t)i;
+        v = g->a0[c] + (int64_t)(u ^ sign) - (int64_t)sign +
+            (full ? floor_shift(v, t->group_shift) : floor_div(v, (int64_t)g->span));
+        w >>= wc;
+        escapes |= (uint32_t)(u == sign && wc) << c;
         /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-        q[c] = (int32_t)(pred > MAX_Q ? MAX_Q : pred < -MAX_Q ? -MAX_Q : pred);
+        q[c] = (int32_t)(v > MAX_Q ? MAX_Q : v < -MAX_Q ? -MAX_Q : v);
     }
+    for (c = 0; escapes; ++c, escapes >>= 1) /* the escape code: the value is an outlier (rare) */
+        if (escapes & 1u) q[c] = outlier(p + t->data, t, g, i, c);
 }
 
 /* ---------------------------------------------------------------- sampling state */
@@ -397,12 +399,12 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-/* Window slot `slot` from a decoded key. */
+/* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
 static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int32_t q[4]) {
     uint32_t c;
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -411,23 +413,25 @@ static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
 }
 
 static void set_curve(track_state* ts) {
-    float t[4], v[4][4];
-    memcpy(t, ts->t, sizeof t);
-    memcpy(v, ts->v, sizeof v);
+    ts->t1 = ts->t[1];
+    ts->t2 = ts->t[2];
     /* A detached first segment (capture that jumps after frame 0): key 0 and key 1 are each
      * an end of their curves, so the first segment is the straight line between them and key
      * 0 takes no part in key 1's tangent. */
     if (ts->L.split && ts->i <= 1u) {
+        float t[4], v[4][4];
+        memcpy(t, ts->t, sizeof t);
+        memcpy(v, ts->v, sizeof v);
         memcpy(v[0], v[1], sizeof v[0]);
         t[0] = t[1];
         if (ts->i == 0) {
             memcpy(v[3], v[2], sizeof v[3]);
             t[3] = t[2];
         }
+        ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
+    } else {
+        ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, ts->L.dims, ts->coef);
     }
-    ts->t1 = t[1];
-    ts->t2 = t[2];
-    ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
     ts->valid = 1;
 }
 
@@ -456,19 +460,52 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     u[3] = i + 2u <= last ? one_after(p, t, u[2]) : u[2];
     ts->i = i;
     ts->u3 = u[3];
-    for (s = 0; s < 4u; ++s) {
-        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
-        if (j > last) j = last;
-        key_value(p, t, &ts->group, j, q);
-        store_key(ts, s, key_frame_at(p, t, j, u[s]), q);
+    /* Keys i - 1 ... i + 2, ends repeated. */
+    for (s = i > 0 ? 0u : 1u; s < 4u && i + s <= last + 1u; ++s) {
+        key_value(p, t, &ts->group, i + s - 1u, q);
+        store_key(ts, s, key_frame_at(p, t, i + s - 1u, u[s]), q);
     }
+    if (i == 0) repeat_slot(ts, 0, 1);
+    if (i + 2u > last) repeat_slot(ts, 3, 2);
     set_curve(ts);
 }
 
-/* The curve of one track at x: the cached segment, the next one in sequential playback, or a
- * fresh locate. */
+/* Sequential playback and short steps forward (a game tick moves a few frames): the window
+ * moves on by one key, reading the new last key. */
+static void advance(const uint8_t* p, track_state* ts) {
+    uint32_t last = ts->L.keys - 1u, s;
+    for (s = 0; s < 3u; ++s) repeat_slot(ts, s, s + 1u); /* slot by slot: no overlapping copy */
+    ts->i++;
+    if (ts->i + 2u <= last) {
+        int32_t q[4];
+        ts->u3 = one_after(p, &ts->L, ts->u3);
+        key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
+        store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
+    } else {
+        repeat_slot(ts, 3, 2);
+    }
+}
+
+/* Keys a step forward may read one by one before a fresh locate is cheaper. */
+#define MAX_ADVANCE 3u
+
+/* Keys the window moves on for x at or past t_{i+1}: the first n with x < t_{i+1+n} (or
+ * t_{i+1+n} the last key), found from the key times alone; 0 when more than MAX_ADVANCE. */
+static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x) {
+    uint32_t n = 1, k = ts->i + 2u, u = ts->u3, last = ts->L.keys - 1u;
+    float f = ts->t[3];
+    while (x >= f && k < last) {
+        if (++n > MAX_ADVANCE) return 0;
+        u = one_after(p, &ts->L, u);
+        f = (float)key_frame_at(p, &ts->L, ++k, u);
+    }
+    return n;
+}
+
+/* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
+ * Either way the window is the four keys around x's segment, so the curve is the same bits. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, last = ts->L.keys - 1u;
+    uint32_t c, n, last = ts->L.keys - 1u;
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -476,27 +513,17 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     }
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
-    } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
-        /* Sequential playback moves on by a key; anything further is a random access. */
-        if (ts->i + 2u <= last && x < ts->t[3]) {
-            memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
-            memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
-            ts->i++;
-            if (ts->i + 2u <= last) {
-                int32_t q[4];
-                ts->u3 = one_after(p, &ts->L, ts->u3);
-                key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
-                store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
-            } else {
-                repeat_slot(ts, 3, 2);
-            }
-            set_curve(ts);
-        } else {
+    } else if (x >= ts->t2 && ts->i + 1u < last) { /* x = the last key is the last segment's */
+        n = keys_ahead(p, ts, x);
+        if (n == 0) {
             locate(p, ts, x);
+        } else {
+            while (n--) advance(p, ts);
+            set_curve(ts);
         }
     }
     s = (x - ts->t1) * ts->inv_h;
-    for (c = 0; c < ts->L.dims; ++c)
+    for (c = 0; c < 4u; ++c)
         out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
 }
 
