@@ -20,6 +20,13 @@
 #define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
 #define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
 
+/* Rare paths kept out of line, so the hot loops around them keep their registers. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RARE_PATH __attribute__((noinline, cold))
+#else
+#define RARE_PATH
+#endif
+
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
 
@@ -233,22 +240,21 @@ typedef struct group_view {
     int32_t a0[4], d[4];  /* its anchor, and the next one's difference from it */
 } group_view;
 
-/* The anchor of row e (the key e * G, or the last key for the last row). Components past the
- * track's have 0 bits and read 0, so the loop has no branch on the kind. */
+/* The anchor of row e (the key e * G, or the last key for the last row). */
 static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
     uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
     uint32_t c;
+    a[3] = 0;
     if (t->anchor_bits <= 57u) { /* one load for all components */
         uint64_t w = mcd_rd_u64(p + t->table + (size_t)(bit >> 3)) >> (bit & 7u);
-        for (c = 0; c < 4u; ++c) {
+        for (c = 0; c < t->dims; ++c) {
             uint32_t n = t->abits[c];
-            uint64_t u = w & (((uint64_t)1 << n) - 1u), sign = ((uint64_t)1 << n) >> 1;
+            uint64_t sign = (uint64_t)1 << (n - 1u), u = w & ((sign << 1) - 1u);
             a[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
             w >>= n;
         }
         return;
     }
-    a[3] = 0;
     for (c = 0; c < t->dims; ++c) {
         a[c] = mcd_read_signed(p + t->table, bit, t->abits[c]);
         bit += t->abits[c];
@@ -258,10 +264,11 @@ static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int3
 static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
     const uint8_t* table = p + t->table;
     uint64_t bit = (uint64_t)e * t->row_bits;
+    uint64_t head = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* offset and widths: <= 48 bits */
     uint32_t c, at = 0, widths, first = e << t->group_shift;
     g->row = e;
-    g->bit = mcd_read_bits(table, bit, t->offset_bits);
-    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims); /* 0 past the track's */
+    g->bit = (uint32_t)(head & ((((uint64_t)1) << t->offset_bits) - 1u));
+    widths = (uint32_t)(head >> t->offset_bits) & ((1u << (WIDTH_BITS * t->dims)) - 1u); /* 0 past the track's */
     for (c = 0; c < 4u; ++c) {
         uint32_t w = (widths >> (WIDTH_BITS * c)) & 15u;
         g->width[c] = (uint8_t)w;
@@ -300,64 +307,63 @@ static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t b
     return w;
 }
 
-/* Component c's field of a record word holds the escape code 2^(w - 1) (never for width 0). */
-static int escaped(const group_view* g, uint64_t w, uint32_t c) {
-    uint32_t wc = g->width[c];
-    return wc && ((uint32_t)(w >> g->shift[c]) & (((uint32_t)1 << wc) - 1u)) == (uint32_t)1 << (wc - 1u);
-}
-
 /* Record i's component c when its field holds the escape code: the outlier, stored whole
- * after the group's records in record and component order. */
-static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
-    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit;
-    for (j = 1; j < i; ++j, bit += g->rec_bits) {
-        uint64_t w = record_word(data, g, bit);
-        for (k = 0; k < t->dims; ++k)
-            if (escaped(g, w, k)) at += t->abits[k];
+ * after the group's records in record and component order, so the escapes before it count. */
+RARE_PATH static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
+    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit, mask[4], code[4];
+    for (k = 0; k < 4u; ++k) {
+        mask[k] = ((uint32_t)1 << g->width[k]) - 1u;
+        code[k] = g->width[k] ? (mask[k] + 1u) >> 1 : UINT32_MAX; /* width 0: no escape */
     }
-    {
+    for (j = 1; j <= i; ++j, bit += g->rec_bits) {
         uint64_t w = record_word(data, g, bit);
-        for (k = 0; k < c; ++k)
-            if (escaped(g, w, k)) at += t->abits[k];
+        uint32_t n = j < i ? t->dims : c;
+        for (k = 0; k < n; ++k) {
+            at += ((uint32_t)w & mask[k]) == code[k] ? t->abits[k] : 0u;
+            w >>= g->width[k];
+        }
     }
     return mcd_read_signed(data, at, t->abits[c]);
 }
 
-/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read;
- * row e's anchor is also the end of group e - 1. */
-static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int32_t q[4]) {
-    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full, escapes = 0;
+/* Key j's lattice integers (components past the track's: 0), as wide as any bytes make them:
+ * in a validated payload every one is within +-2^30 (check_track reads them all). `g` caches
+ * the last group read; row e's anchor is also the end of group e - 1. */
+static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
+    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full;
     uint64_t w;
     if (i == 0) { /* an anchor */
         if (g->row == e) {
-            memcpy(q, g->a0, 4u * sizeof q[0]);
+            for (c = 0; c < 4u; ++c) q[c] = g->a0[c];
         } else if (g->row != UINT32_MAX && g->row + 1u == e) {
-            for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+            for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
         } else {
-            row_anchor(p, t, e, q);
+            int32_t a[4];
+            row_anchor(p, t, e, a);
+            for (c = 0; c < 4u; ++c) q[c] = a[c];
         }
         return;
     }
     if (g->row != e) group_load(p, t, e, g);
     if (i >= g->span) { /* the track's last key: the next anchor */
-        for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+        for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
         return;
     }
     w = record_word(p + t->data, g, g->bit + (i - 1u) * g->rec_bits);
     full = g->span == (1u << t->group_shift);
     q[3] = 0;
     for (c = 0; c < t->dims; ++c) {
-        uint32_t wc = g->width[c], sign = ((uint32_t)1 << wc) >> 1, u = (uint32_t)w & (((uint32_t)1 << wc) - 1u);
-        int64_t v = (int64_t)g->d[c] * (int64_t)i;
-        v = g->a0[c] + (int64_t)(u ^ sign) - (int64_t)sign +
-            (full ? floor_shift(v, t->group_shift) : floor_div(v, (int64_t)g->span));
+        uint32_t wc = g->width[c], mask = ((uint32_t)1 << wc) - 1u, sign = (mask + 1u) >> 1, u = (uint32_t)w & mask;
+        int64_t v;
         w >>= wc;
-        escapes |= (uint32_t)(u == sign && wc) << c;
-        /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-        q[c] = (int32_t)(v > MAX_Q ? MAX_Q : v < -MAX_Q ? -MAX_Q : v);
+        if (u == sign && wc) { /* the escape code (never at width 0): the value is an outlier */
+            q[c] = outlier(p + t->data, t, g, i, c);
+            continue;
+        }
+        v = (int64_t)g->d[c] * (int64_t)i;
+        q[c] = g->a0[c] + (int64_t)(u ^ sign) - (int64_t)sign +
+               (full ? floor_shift(v, t->group_shift) : floor_div(v, (int64_t)g->span));
     }
-    for (c = 0; escapes; ++c, escapes >>= 1) /* the escape code: the value is an outlier (rare) */
-        if (escapes & 1u) q[c] = outlier(p + t->data, t, g, i, c);
 }
 
 /* ---------------------------------------------------------------- sampling state */
@@ -400,7 +406,7 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
 }
 
 /* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
-static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int32_t q[4]) {
+static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int64_t q[4]) {
     uint32_t c;
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
@@ -439,7 +445,7 @@ static void set_curve(track_state* ts) {
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
     uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
-    int32_t q[4];
+    int64_t q[4];
     if (xi > t->frames - 1u) xi = t->frames - 1u;
     c = cell_of(t, xi);
     u[1] = cell_end(p, t, c);
@@ -477,7 +483,7 @@ static void advance(const uint8_t* p, track_state* ts) {
     for (s = 0; s < 3u; ++s) repeat_slot(ts, s, s + 1u); /* slot by slot: no overlapping copy */
     ts->i++;
     if (ts->i + 2u <= last) {
-        int32_t q[4];
+        int64_t q[4];
         ts->u3 = one_after(p, &ts->L, ts->u3);
         key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
         store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
@@ -545,8 +551,8 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
         if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
         if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
         if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
-            int32_t q[4];
-            row_anchor(p, &ts->L, 0, q);
+            int64_t q[4];
+            key_value(p, &ts->L, &ts->group, 0, q);
             store_key(ts, 0, 0, q);
         }
         at = ts->L.end;
@@ -683,12 +689,10 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t) {
     /* Every key's value within range. */
     g.row = UINT32_MAX;
     for (b = 0; b < t->keys; ++b) {
-        int32_t q[4];
-        int64_t raw;
+        int64_t q[4];
         key_value(p, t, &g, b, q);
         for (c = 0; c < t->dims; ++c) {
-            raw = q[c];
-            if (raw >= MAX_Q || raw <= -MAX_Q) return MCD_ERROR_MALFORMED;
+            if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
         }
     }
