@@ -8,7 +8,7 @@
  * its residual from the chord between the group's anchor and the next, so any key's value is
  * one read (an escaped residual, rare, a short walk to its outlier). A random access reads the
  * four keys around x; sequential playback keeps them in the scratch and reads one key per key
- * interval. */
+ * interval, and a step forward of up to three keys (a game tick) reads just those keys. */
 #include <string.h>
 
 #include "internal.h"
@@ -19,6 +19,13 @@
 #define RANK_SHIFT 6u /* a rank entry every 64 cells */
 #define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
 #define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
+
+/* Rare paths kept out of line, so the hot loops around them keep their registers. */
+#if defined(__GNUC__) || defined(__clang__)
+#define RARE_PATH __attribute__((noinline, cold))
+#else
+#define RARE_PATH
+#endif
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
 enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
@@ -257,12 +264,13 @@ static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int3
 static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
     const uint8_t* table = p + t->table;
     uint64_t bit = (uint64_t)e * t->row_bits;
+    uint64_t head = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* offset and widths: <= 48 bits */
     uint32_t c, at = 0, widths, first = e << t->group_shift;
     g->row = e;
-    g->bit = mcd_read_bits(table, bit, t->offset_bits);
-    widths = mcd_read_bits(table, bit + t->offset_bits, WIDTH_BITS * t->dims);
+    g->bit = (uint32_t)(head & ((((uint64_t)1) << t->offset_bits) - 1u));
+    widths = (uint32_t)(head >> t->offset_bits) & ((1u << (WIDTH_BITS * t->dims)) - 1u); /* 0 past the track's */
     for (c = 0; c < 4u; ++c) {
-        uint32_t w = c < t->dims ? (widths >> (WIDTH_BITS * c)) & 15u : 0u;
+        uint32_t w = (widths >> (WIDTH_BITS * c)) & 15u;
         g->width[c] = (uint8_t)w;
         g->shift[c] = (uint8_t)at;
         at += w;
@@ -273,7 +281,7 @@ static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, grou
         int32_t a1[4];
         g->span = t->keys - 1u - first < (1u << t->group_shift) ? t->keys - 1u - first : 1u << t->group_shift;
         row_anchor(p, t, e + 1u, a1);
-        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 in valid payloads */
+        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 */
     } else {
         g->span = 0;
         memset(g->d, 0, sizeof g->d);
@@ -299,62 +307,62 @@ static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t b
     return w;
 }
 
-/* Component c's field of a record word holds the escape code 2^(w - 1) (never for width 0). */
-static int escaped(const group_view* g, uint64_t w, uint32_t c) {
-    uint32_t wc = g->width[c];
-    return wc && ((uint32_t)(w >> g->shift[c]) & (((uint32_t)1 << wc) - 1u)) == (uint32_t)1 << (wc - 1u);
-}
-
 /* Record i's component c when its field holds the escape code: the outlier, stored whole
- * after the group's records in record and component order. */
-static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
-    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit;
-    for (j = 1; j < i; ++j, bit += g->rec_bits) {
-        uint64_t w = record_word(data, g, bit);
-        for (k = 0; k < t->dims; ++k)
-            if (escaped(g, w, k)) at += t->abits[k];
+ * after the group's records in record and component order, so the escapes before it count. */
+RARE_PATH static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
+    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit, mask[4], code[4];
+    for (k = 0; k < 4u; ++k) {
+        mask[k] = ((uint32_t)1 << g->width[k]) - 1u;
+        code[k] = g->width[k] ? (mask[k] + 1u) >> 1 : UINT32_MAX; /* width 0: no escape */
     }
-    {
+    for (j = 1; j <= i; ++j, bit += g->rec_bits) {
         uint64_t w = record_word(data, g, bit);
-        for (k = 0; k < c; ++k)
-            if (escaped(g, w, k)) at += t->abits[k];
+        uint32_t n = j < i ? t->dims : c;
+        for (k = 0; k < n; ++k) {
+            at += ((uint32_t)w & mask[k]) == code[k] ? t->abits[k] : 0u;
+            w >>= g->width[k];
+        }
     }
     return mcd_read_signed(data, at, t->abits[c]);
 }
 
-/* Key j's lattice integers (components past the track's: 0). `g` caches the last group read. */
-static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int32_t q[4]) {
-    const uint8_t* data = p + t->data;
-    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, bit, full;
+/* Key j's lattice integers (components past the track's: 0), as wide as any bytes make them:
+ * in a validated payload every one is within +-2^30 (check_track reads them all). `g` caches
+ * the last group read; row e's anchor is also the end of group e - 1. */
+static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
+    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full;
     uint64_t w;
     if (i == 0) { /* an anchor */
-        if (g->row == e) memcpy(q, g->a0, 4u * sizeof q[0]);
-        else row_anchor(p, t, e, q);
+        if (g->row == e) {
+            for (c = 0; c < 4u; ++c) q[c] = g->a0[c];
+        } else if (g->row != UINT32_MAX && g->row + 1u == e) {
+            for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
+        } else {
+            int32_t a[4];
+            row_anchor(p, t, e, a);
+            for (c = 0; c < 4u; ++c) q[c] = a[c];
+        }
         return;
     }
     if (g->row != e) group_load(p, t, e, g);
     if (i >= g->span) { /* the track's last key: the next anchor */
-        for (c = 0; c < 4u; ++c) q[c] = g->a0[c] + g->d[c];
+        for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
         return;
     }
-    bit = g->bit + (i - 1u) * g->rec_bits;
-    w = record_word(data, g, bit);
+    w = record_word(p + t->data, g, g->bit + (i - 1u) * g->rec_bits);
     full = g->span == (1u << t->group_shift);
     q[3] = 0;
     for (c = 0; c < t->dims; ++c) {
-        uint32_t wc = g->width[c];
-        int64_t pred = (int64_t)g->d[c] * (int64_t)i;
-        pred = g->a0[c] + (full ? floor_shift(pred, t->group_shift) : floor_div(pred, (int64_t)g->span));
-        if (wc) {
-            uint32_t sign = (uint32_t)1 << (wc - 1u), u = (uint32_t)(w >> g->shift[c]) & ((sign << 1) - 1u);
-            if (u == sign) { /* escaped: rare */
-                q[c] = outlier(data, t, g, i, c);
-                continue;
-            }
-            pred += (int64_t)(u ^ sign) - (int64_t)sign;
+        uint32_t wc = g->width[c], mask = ((uint32_t)1 << wc) - 1u, sign = (mask + 1u) >> 1, u = (uint32_t)w & mask;
+        int64_t v;
+        w >>= wc;
+        if (u == sign && wc) { /* the escape code (never at width 0): the value is an outlier */
+            q[c] = outlier(p + t->data, t, g, i, c);
+            continue;
         }
-        /* Validated payloads stay within +-2^30; the clamp keeps any other bytes finite. */
-        q[c] = (int32_t)(pred > MAX_Q ? MAX_Q : pred < -MAX_Q ? -MAX_Q : pred);
+        v = (int64_t)g->d[c] * (int64_t)i;
+        q[c] = g->a0[c] + (int64_t)(u ^ sign) - (int64_t)sign +
+               (full ? floor_shift(v, t->group_shift) : floor_div(v, (int64_t)g->span));
     }
 }
 
@@ -397,12 +405,12 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-/* Window slot `slot` from a decoded key. */
-static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int32_t q[4]) {
+/* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
+static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int64_t q[4]) {
     uint32_t c;
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -411,23 +419,25 @@ static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
 }
 
 static void set_curve(track_state* ts) {
-    float t[4], v[4][4];
-    memcpy(t, ts->t, sizeof t);
-    memcpy(v, ts->v, sizeof v);
+    ts->t1 = ts->t[1];
+    ts->t2 = ts->t[2];
     /* A detached first segment (capture that jumps after frame 0): key 0 and key 1 are each
      * an end of their curves, so the first segment is the straight line between them and key
      * 0 takes no part in key 1's tangent. */
     if (ts->L.split && ts->i <= 1u) {
+        float t[4], v[4][4];
+        memcpy(t, ts->t, sizeof t);
+        memcpy(v, ts->v, sizeof v);
         memcpy(v[0], v[1], sizeof v[0]);
         t[0] = t[1];
         if (ts->i == 0) {
             memcpy(v[3], v[2], sizeof v[3]);
             t[3] = t[2];
         }
+        ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
+    } else {
+        ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, ts->L.dims, ts->coef);
     }
-    ts->t1 = t[1];
-    ts->t2 = t[2];
-    ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
     ts->valid = 1;
 }
 
@@ -435,7 +445,7 @@ static void set_curve(track_state* ts) {
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
     uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
-    int32_t q[4];
+    int64_t q[4];
     if (xi > t->frames - 1u) xi = t->frames - 1u;
     c = cell_of(t, xi);
     u[1] = cell_end(p, t, c);
@@ -456,19 +466,52 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     u[3] = i + 2u <= last ? one_after(p, t, u[2]) : u[2];
     ts->i = i;
     ts->u3 = u[3];
-    for (s = 0; s < 4u; ++s) {
-        uint32_t j = i + s < 1u ? 0u : i + s - 1u; /* keys i - 1 ... i + 2, ends repeated */
-        if (j > last) j = last;
-        key_value(p, t, &ts->group, j, q);
-        store_key(ts, s, key_frame_at(p, t, j, u[s]), q);
+    /* Keys i - 1 ... i + 2, ends repeated. */
+    for (s = i > 0 ? 0u : 1u; s < 4u && i + s <= last + 1u; ++s) {
+        key_value(p, t, &ts->group, i + s - 1u, q);
+        store_key(ts, s, key_frame_at(p, t, i + s - 1u, u[s]), q);
     }
+    if (i == 0) repeat_slot(ts, 0, 1);
+    if (i + 2u > last) repeat_slot(ts, 3, 2);
     set_curve(ts);
 }
 
-/* The curve of one track at x: the cached segment, the next one in sequential playback, or a
- * fresh locate. */
+/* Sequential playback and short steps forward (a game tick moves a few frames): the window
+ * moves on by one key, reading the new last key. */
+static void advance(const uint8_t* p, track_state* ts) {
+    uint32_t last = ts->L.keys - 1u, s;
+    for (s = 0; s < 3u; ++s) repeat_slot(ts, s, s + 1u); /* slot by slot: no overlapping copy */
+    ts->i++;
+    if (ts->i + 2u <= last) {
+        int64_t q[4];
+        ts->u3 = one_after(p, &ts->L, ts->u3);
+        key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
+        store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
+    } else {
+        repeat_slot(ts, 3, 2);
+    }
+}
+
+/* Keys a step forward may read one by one before a fresh locate is cheaper. */
+#define MAX_ADVANCE 3u
+
+/* Keys the window moves on for x at or past t_{i+1}: the first n with x < t_{i+1+n} (or
+ * t_{i+1+n} the last key), found from the key times alone; 0 when more than MAX_ADVANCE. */
+static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x) {
+    uint32_t n = 1, k = ts->i + 2u, u = ts->u3, last = ts->L.keys - 1u;
+    float f = ts->t[3];
+    while (x >= f && k < last) {
+        if (++n > MAX_ADVANCE) return 0;
+        u = one_after(p, &ts->L, u);
+        f = (float)key_frame_at(p, &ts->L, ++k, u);
+    }
+    return n;
+}
+
+/* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
+ * Either way the window is the four keys around x's segment, so the curve is the same bits. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, last = ts->L.keys - 1u;
+    uint32_t c, n, last = ts->L.keys - 1u;
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -476,27 +519,17 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     }
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
-    } else if (x >= ts->t2 && !(x == ts->t2 && ts->i + 1u == last)) {
-        /* Sequential playback moves on by a key; anything further is a random access. */
-        if (ts->i + 2u <= last && x < ts->t[3]) {
-            memmove(ts->v[0], ts->v[1], sizeof ts->v[0] * 3u);
-            memmove(ts->t, ts->t + 1, sizeof ts->t[0] * 3u);
-            ts->i++;
-            if (ts->i + 2u <= last) {
-                int32_t q[4];
-                ts->u3 = one_after(p, &ts->L, ts->u3);
-                key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
-                store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
-            } else {
-                repeat_slot(ts, 3, 2);
-            }
-            set_curve(ts);
-        } else {
+    } else if (x >= ts->t2 && ts->i + 1u < last) { /* x = the last key is the last segment's */
+        n = keys_ahead(p, ts, x);
+        if (n == 0) {
             locate(p, ts, x);
+        } else {
+            while (n--) advance(p, ts);
+            set_curve(ts);
         }
     }
     s = (x - ts->t1) * ts->inv_h;
-    for (c = 0; c < ts->L.dims; ++c)
+    for (c = 0; c < 4u; ++c)
         out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
 }
 
@@ -518,8 +551,8 @@ static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* track
         if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
         if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
         if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
-            int32_t q[4];
-            row_anchor(p, &ts->L, 0, q);
+            int64_t q[4];
+            key_value(p, &ts->L, &ts->group, 0, q);
             store_key(ts, 0, 0, q);
         }
         at = ts->L.end;
@@ -656,12 +689,10 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t) {
     /* Every key's value within range. */
     g.row = UINT32_MAX;
     for (b = 0; b < t->keys; ++b) {
-        int32_t q[4];
-        int64_t raw;
+        int64_t q[4];
         key_value(p, t, &g, b, q);
         for (c = 0; c < t->dims; ++c) {
-            raw = q[c];
-            if (raw >= MAX_Q || raw <= -MAX_Q) return MCD_ERROR_MALFORMED;
+            if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
         }
     }
