@@ -433,6 +433,15 @@ def _children(pid: int) -> list[int]:
         return []
 
 
+def _looped_bvh(source: Path, times: int, dest: Path) -> Path:
+    """``source``'s motion played ``times`` over in one BVH: a bake long enough to interrupt."""
+    head, motion = source.read_text().split("MOTION", 1)
+    lines = motion.strip().splitlines()
+    frames = [line for line in lines[2:] if line.strip()]
+    dest.write_text(f"{head}MOTION\nFrames: {len(frames) * times}\n{lines[1]}\n" + "\n".join(frames * times) + "\n")
+    return dest
+
+
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc to find the workers")
 @pytest.mark.parametrize("jobs", [2, 1])
 def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path, jobs):
@@ -443,9 +452,11 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path, job
     out_dir.mkdir()
     tmp.mkdir()
     out = out_dir / "lib.mcd"
-    # A tight tolerance: the bake lasts long enough to be interrupted while the workers encode.
+    # Each sample looped 40 times at a tight tolerance: the bake lasts long enough (tens of
+    # seconds) to be interrupted while the workers encode, however fast the fitting gets.
     # The bar is on (no -q): the interrupted bar must not add lines to the one message.
-    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, sample_paths), "-o", str(out),
+    inputs = [_looped_bvh(path, 40, tmp_path / f"long_{path.name}") for path in sample_paths]
+    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, inputs), "-o", str(out),
                           "-t", "0.05", "--units", "cmu", "--jobs", str(jobs)], stderr=subprocess.PIPE,
                          stdout=subprocess.PIPE, text=True, env={**os.environ, "TMPDIR": str(tmp)},
                          start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
