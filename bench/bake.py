@@ -225,15 +225,15 @@ def write_library(paths: list[Path], count: int, seconds: float, folder: Path) -
 
 def _tree_rss(pid: int) -> int:
     """Resident bytes of ``pid`` and all its descendants."""
-    total, todo = 0, [pid]
-    while todo:
-        p = todo.pop()
+    total, unvisited = 0, [pid]
+    while unvisited:
+        p = unvisited.pop()
         try:
             with open(f"/proc/{p}/statm") as f:
                 total += int(f.read().split()[1]) * PAGE
             for task in os.listdir(f"/proc/{p}/task"):
                 with open(f"/proc/{p}/task/{task}/children") as f:
-                    todo += [int(c) for c in f.read().split()]
+                    unvisited += [int(c) for c in f.read().split()]
         except (OSError, ValueError):
             continue
     return total

@@ -130,7 +130,7 @@ class Runner:
         and is raised."""
         outcomes: list[ClipOutcome | None] = [None] * len(jobs)
         keys: dict[int, str] = {}
-        todo: list[tuple[int, ClipJob]] = []
+        to_encode: list[tuple[int, ClipJob]] = []
         with PayloadSpool() as spool:
             for i, job in enumerate(jobs):
                 if self.cache is not None:
@@ -140,9 +140,9 @@ class Runner:
                         outcomes[i] = self._spooled(spool, i, hit)
                         _report(progress, "hit", job.name) or (progress and progress(job.name))
                         continue
-                todo.append((i, job))
-            todo.sort(key=lambda item: -item[1].weight)  # stable: equal weights keep clip order
-            for i, outcome in self._dispatch(todo, progress):
+                to_encode.append((i, job))
+            to_encode.sort(key=lambda item: -item[1].weight)  # stable: equal weights keep clip order
+            for i, outcome in self._dispatch(to_encode, progress):
                 if self.cache is not None:
                     self.cache.put(keys[i], outcome)
                 outcomes[i] = self._spooled(spool, i, outcome)
@@ -159,10 +159,10 @@ class Runner:
         spool.add(i, outcome.payload)
         return dataclasses.replace(outcome, payload=b"")
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+    def _dispatch(self, to_encode: list[tuple[int, ClipJob]],
                   progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
-        """(position, outcome) of every job of ``todo`` as it finishes."""
-        for i, job in todo:
+        """(position, outcome) of every job of ``to_encode`` as it finishes."""
+        for i, job in to_encode:
             _report(progress, "started", job.name)
             yield i, run_job(job)
 
@@ -185,12 +185,12 @@ def _report(progress: ProgressFn | None, event: str, name: str) -> bool:
     return True
 
 
-def _windowed(todo: list[tuple[int, ClipJob]], window: int, submit: Callable[[ClipJob], Any],
+def _windowed(to_encode: list[tuple[int, ClipJob]], window: int, submit: Callable[[ClipJob], Any],
               wait_one: Callable[[set], Any], progress: ProgressFn | None) -> Iterator[tuple[Any, int, ClipJob]]:
-    """Submit the jobs of ``todo`` in order, at most ``window`` in flight (the parent holds only
+    """Submit the jobs of ``to_encode`` in order, at most ``window`` in flight (the parent holds only
     those, not one future per clip of the library); yield (future, position, job) as each ends.
     ``wait_one(in_flight)`` returns a finished future of the set."""
-    pending = iter(todo)
+    pending = iter(to_encode)
     in_flight: dict[Any, tuple[int, ClipJob]] = {}
 
     def top_up() -> None:
@@ -253,10 +253,10 @@ class ProcessRunner(Runner):
             self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_ignore_interrupt)
         return self._pool
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+    def _dispatch(self, to_encode: list[tuple[int, ClipJob]],
                   progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
-        if len(todo) <= 1:  # starting a process would only add its start-up time
-            yield from super()._dispatch(todo, progress)
+        if len(to_encode) <= 1:  # starting a process would only add its start-up time
+            yield from super()._dispatch(to_encode, progress)
             return
         pool = self._executor()
         submitted: list[cf.Future] = []
@@ -274,7 +274,7 @@ class ProcessRunner(Runner):
             return next(iter(cf.wait(futures, return_when=cf.FIRST_COMPLETED).done))
 
         try:
-            for f, i, job in _windowed(todo, self.workers, submit, wait_one, progress):
+            for f, i, job in _windowed(to_encode, self.workers, submit, wait_one, progress):
                 try:
                     outcome = f.result()
                 except cf.process.BrokenProcessPool:
@@ -316,9 +316,9 @@ class DaskRunner(Runner):
             raise BakeError(f"cannot reach the Dask scheduler at {address!r}: {reason}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
-    def _dispatch(self, todo: list[tuple[int, ClipJob]],
+    def _dispatch(self, to_encode: list[tuple[int, ClipJob]],
                   progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
-        if not todo:
+        if not to_encode:
             return
         from distributed import KilledWorker, as_completed
 
@@ -350,7 +350,7 @@ class DaskRunner(Runner):
 
         try:
             # Two tasks a worker: the next clip is there when one ends (a network away).
-            for f, i, job in _windowed(todo, 2 * workers, submit, wait_one, progress):
+            for f, i, job in _windowed(to_encode, 2 * workers, submit, wait_one, progress):
                 try:
                     outcome = f.result()
                 except KilledWorker:
