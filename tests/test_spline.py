@@ -233,13 +233,10 @@ def _twist_descriptors(payload: bytes) -> list[tuple[np.ndarray, np.ndarray, np.
     return out
 
 
-def test_twist_whose_swing_goes_round_keeps_bounded_parameters():
+def _swing_round() -> Motion:
     """A leg spinning about its bone 40 times while its swing bends to 179.9 degrees: the swing
     left after the twist takes a path that goes round to its reference's antipode (what a long
-    capture's foot did: MRPs of 2e5 on 20 minutes of the dev takes, past the 24-bit keys).
-    Each frame's swing is kept on the reference's hemisphere (mocodec.swing_hemisphere):
-    the clip encodes within the tolerance, C and the Python reference agree, and the stored
-    swing stays within |p| <= 1. (Before, the encoder wrote an asset its own check refused.)"""
+    capture's foot did: MRPs of 2e5 on 20 minutes of the dev takes, past the 24-bit keys)."""
     f = 3000
     t = np.linspace(0, 1, f)
     rows = np.zeros((f, 15))
@@ -247,7 +244,15 @@ def test_twist_whose_swing_goes_round_keeps_bounded_parameters():
     rows[:, 12] = 14400 * t                                   # Leg Y: the twist, 40 turns
     rows[:, 13] = 179.9 * (0.5 - 0.5 * np.cos(np.pi * t))     # Leg Z: the swing, to 179.9 degrees
     rows[:, 14] = 20 * np.sin(7 * np.pi * t)
-    m = parse_bvh(_bvh(CHAIN, rows), name="swing_round")
+    return parse_bvh(_bvh(CHAIN, rows), name="swing_round")
+
+
+def test_twist_whose_swing_goes_round_keeps_bounded_parameters():
+    """The swing of :func:`_swing_round` is kept on the reference's hemisphere by the key-frame
+    engine (mocodec.swing_hemisphere): the clip encodes within the tolerance, C and the Python
+    reference agree, and the stored swing stays within |p| <= 1. (Before, the encoder wrote an
+    asset its own check refused.)"""
+    m = _swing_round()
     result = encode_motions([m], [resolve_units(m.skeleton, "cm", None)], "spline", Tolerance(0.5))
     assert _world_error_cm(Asset(result.asset), m, 1.0).max() <= 0.5
     _assert_c_matches_reference(result.asset, m)
@@ -257,3 +262,10 @@ def test_twist_whose_swing_goes_round_keeps_bounded_parameters():
         # bits = ceil(log2(levels + 1)): the quantized span is at least 2**(bits - 1) steps.
         span = 2.0 ** (bits[1:] - 1) * steps[1:]
         assert np.all(mins[1:] >= -1.0) and np.all(span <= 2.0 + steps[1:]), (mins, steps, bits)
+
+
+def test_every_keyframe_codec_bounds_a_swing_that_goes_round():
+    """The hemisphere rule is the key-frame engine's, not one codec's: rma encodes
+    :func:`_swing_round` within the tolerance too (it failed with "field widths must be 0 ...
+    32": the continuous swing reaches the antipode, a NaN then an unbounded key)."""
+    _check(_swing_round(), 0.5, "rma")

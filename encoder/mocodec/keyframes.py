@@ -28,6 +28,7 @@ from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_
 from .kinematics import forward_kinematics, halfway_world, held_intervals
 from .motion import Motion
 from .quantize import Quantizer
+from .swing_hemisphere import swing_on_reference_hemisphere
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         initial_budgets, meet_tolerance, tighten)
 
@@ -184,7 +185,13 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), rest))
     if np.mean(rel[:, 3]) < 0:
         rel = -rel
-    values = np.concatenate((theta[:, None], R.mrp_from_quat(rel)), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a frame at the antipode: NaN, bounded below
+        values = np.concatenate((theta[:, None], R.mrp_from_quat(rel)), axis=1)
+    # A long clip's swing, followed continuously, can go round to the reference's antipode,
+    # past any key width: keep it on the reference's hemisphere (mocodec.swing_hemisphere).
+    bounded = swing_on_reference_hemisphere(KIND_TWIST, values, q, ref, axis)
+    if bounded is not None:
+        values = bounded
     return Track(node, KIND_TWIST, values, q, ref, axis, ref_codes=ref_codes, axis_codes=axis_codes)
 
 

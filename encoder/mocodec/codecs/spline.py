@@ -17,7 +17,6 @@ import numpy as np
 from ..bitpack import BitWriter
 from ..keyframes import DIMS, KIND_TWIST, KeyframeFitter, KeyframeSettings, Track, fit_clip, node_modes
 from ..motion import Motion
-from ..swing_hemisphere import swing_on_reference_hemisphere
 from ..tolerance import ClipCheck
 from . import ClipResult
 
@@ -154,14 +153,6 @@ class SplineFitter(KeyframeFitter):
 
     def payload(self, tracks: list[Track]) -> bytes:
         return serialize(self.motion, tracks, self.settings.block_shift)
-
-    def _fit(self, track: Track) -> None:
-        # A long clip's twist swing can go round to the reference's antipode, past any key
-        # width: keep it on the reference's hemisphere (mocodec.swing_hemisphere).
-        values = swing_on_reference_hemisphere(track.kind, track.values, track.target, track.ref, track.axis)
-        if values is not None:
-            track.values = values
-        super()._fit(track)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: SplineSettings,
