@@ -9,9 +9,11 @@ import re
 import numpy as np
 import pytest
 
-from mocodec.encode import encode_motions
+from mocodec.encode import EncodeError, encode_motions
 from mocodec.io import read_bvh
-from mocodec.limits import LimitError, printable, safe_clip_name
+from mocodec.kinematics import forward_kinematics
+from mocodec.limits import LimitError, position_reach, printable, safe_clip_name
+from mocodec.tolerance import Tolerance
 from mocodec.units import resolve_units
 
 
@@ -48,3 +50,34 @@ def test_printable_and_safe_clip_names():
     assert safe_clip_name("walk:1/2\\3\x00") == "walk_1_2_3_"
     assert safe_clip_name("..") == "clip" and safe_clip_name("") == "clip"
     assert len(safe_clip_name("é" * 200).encode()) == 254
+
+
+def _moved(m, cm: float):
+    """``m`` with its root ``cm`` centimetres further along X (the samples are in CMU units)."""
+    trans = m.translations.copy()
+    trans[:, 0, 0] += cm / resolve_units(m.skeleton, "cmu").cm_per_unit
+    return dataclasses.replace(m, translations=trans)
+
+
+@pytest.mark.parametrize("codec", ["rma", "spline"])
+def test_a_clip_far_from_the_origin_is_refused_before_encoding(motion, codec):
+    """50 km out, binary32 positions are 0.35 cm apart: no key lands within 1 cm once the
+    runtime's own rounding is added. Refused up front with the limit named (rma failed late with
+    "range ... needs more than 2**30 steps", spline with "quantization cannot reach the
+    budget"); 20 km out still encodes within the tolerance."""
+    units = [resolve_units(motion.skeleton, "cmu")]
+    with pytest.raises(EncodeError, match=r"cannot meet the tolerance: clip '09_11': a position reaches 5e\+06 cm from the origin, "
+                                         r"where the runtime's binary32 positions are 0\.353 cm apart.* "
+                                         r"within 2\.959e\+06 cm of the origin, or loosen the tolerance to at least 1\.41 cm"):
+        encode_motions([_moved(motion, 5e6)], units, codec, Tolerance(1.0))
+    near = encode_motions([_moved(motion, 2e6)], units, codec, Tolerance(1.0))
+    assert near.max_error_cm <= 1.0
+
+
+def test_position_reach_bounds_every_world_coordinate(motion):
+    m = _moved(motion, 3e4)
+    _, pos = forward_kinematics(m.skeleton, m.rotations, m.translations, m.scales)
+    reach = position_reach(m)
+    # At most the root's reach plus every other node's longest translation (all in one chain).
+    loose = np.abs(m.translations[:, 0]).max() + np.linalg.norm(m.translations[:, 1:], axis=-1).max(axis=0).sum()
+    assert np.abs(pos).max() <= reach < loose

@@ -171,7 +171,9 @@ it through the runtime.
     clips (local processes, a Dask cluster, a cache: :func:`mocodec.bake.make_runner`; None:
     one after the other in this process); the asset is the same bytes either way.
 
-    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip,
+    Raises :class:`EncodeError` when the tolerance is not met on every frame of every clip (at
+    once when a clip is so far from the origin, or the tolerance so fine, that the runtime's
+    binary32 positions cannot hold it: :func:`~mocodec.limits.position_precision_problem`),
     :class:`~mocodec.limits.LimitError` when a motion is outside the format's limits.
     """
     if not motions:
@@ -188,6 +190,10 @@ it through the runtime.
     for m, u in zip(motions, units):
         m.validate()
         limits.check_motion(m)  # what a reader did not check yet: an asset the runtime reads
+        problem = entry.spacing_share is not None and limits.position_precision_problem(
+            m, u.cm_per_unit, float(tolerance.per_node_cm(m.skeleton).min()), entry.spacing_share)
+        if problem:
+            raise EncodeError(f"cannot meet the tolerance: clip '{limits.printable(m.name)}': {problem}")
         facts.append(_ClipFacts.of(m, builder.add_skeleton(m.skeleton, u.cm_per_unit), tolerance))
     cm = [u.cm_per_unit for u in units]
     started = time.perf_counter()

@@ -168,3 +168,40 @@ def check_motion(motion, what: str | None = None) -> None:
             frame = f"frame {at[0] + 1}, " if values.ndim == 3 else ""
             raise LimitError(f"{where}: {frame}{label} of node '{printable(sk.names[at[-2]])}': "
                              f"{float(values[at]):.6g} {reason}")
+
+
+def position_reach(motion) -> float:
+    """A bound on every coordinate of every node's world position over the clip (file units):
+    the root's largest coordinate plus the longest chain of local translations, each grown by
+    its ancestors' largest scale. One node at a time, so a long clip's frames are not copied."""
+    sk = motion.skeleton
+    reach = np.zeros(sk.node_count)
+    grow = np.ones(sk.node_count)  # largest |scale| product down to each node
+    for i, p in enumerate(sk.parents):
+        tr = motion.translations[:, i]
+        if p < 0:
+            reach[i] = float(np.abs(tr).max(initial=0.0))
+        else:
+            reach[i] = reach[p] + grow[p] * float(np.sqrt(np.einsum("fc,fc->f", tr, tr)).max(initial=0.0))
+        grow[i] = (1.0 if p < 0 else grow[p]) * float(np.abs(motion.scales[:, i]).max(initial=0.0))
+    return float(reach.max(initial=0.0))
+
+
+def position_precision_problem(motion, cm_per_unit: float, tolerance_cm: float, share: float) -> str | None:
+    """Why the runtime's binary32 positions cannot hold ``tolerance_cm`` on ``motion``, or None:
+    a coordinate of magnitude X is held to the binary32 spacing at X (2^(floor(log2 X) - 23)),
+    and rounding a key, evaluating its curve and each joint of forward kinematics cost up to half
+    a spacing each, so a clip far from the origin (a root 50 km out at 1 cm) has positions no key
+    puts within the tolerance. The limit: that spacing at :func:`position_reach` at most
+    ``share`` of the tolerance (the codec's, :attr:`mocodec.codecs.Codec.spacing_share`)."""
+    reach = position_reach(motion)
+    allowed = share * tolerance_cm / cm_per_unit  # units
+    spacing = float(np.spacing(np.float32(reach)))
+    if spacing <= allowed:
+        return None
+    # The largest magnitude whose spacing is within `allowed`: 2^(floor(log2 allowed) + 24).
+    limit = 2.0 ** (math.floor(math.log2(allowed)) + 24)
+    return (f"a position reaches {reach * cm_per_unit:.4g} cm from the origin, where the runtime's binary32 "
+            f"positions are {spacing * cm_per_unit:.3g} cm apart, more than {share:g} x the "
+            f"{tolerance_cm:g} cm tolerance: move the clip within {limit * cm_per_unit:.4g} cm of the origin, "
+            f"or loosen the tolerance to at least {spacing * cm_per_unit / share:.3g} cm")

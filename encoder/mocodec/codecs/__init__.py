@@ -138,6 +138,12 @@ class Codec:
         One line for ``--help``.
     scale : bool
         Whether its payload stores scale tracks (animated scale).
+    spacing_share : float or None
+        The largest binary32 spacing of a position, as a share of the tolerance, at which it
+        still meets the tolerance (the runtime's arithmetic is binary32: a clip far from the
+        origin is refused up front, :func:`mocodec.limits.position_precision_problem`); None
+        when it makes no tolerance promise (rma-pca's variance bounds no error). Measured on
+        CMU 02_01 and 09_11 moved from the origin, docs/FORMAT.md "Positions far from the origin".
     """
 
     name: str
@@ -149,6 +155,7 @@ class Codec:
     per_clip: bool
     summary: str
     scale: bool = False
+    spacing_share: float | None = 0.25
 
     @property
     def implementation(self) -> ModuleType:
@@ -244,11 +251,13 @@ CODECS: tuple[Codec, ...] = (
           "seed 003: keys placed freely in time, lattice quantization, sampled in place, one section",
           scale=True),
     Codec("rma-pca", 6, b"RMAP", 2, "rma_pca", "RmaPcaSettings", False,
-          "seed 003's PCA of virtual markers per behaviour group (--pca-variance; no error bound)"),
+          "seed 003's PCA of virtual markers per behaviour group (--pca-variance; no error bound)",
+          spacing_share=None),
     Codec("neural", 5, b"NEUR", 2, "neural", "NeuralSettings", True,
           "seed 001: a small network from time to pose per window of frames"),
     Codec("fk-wavelet", 4, b"FKWV", 2, "fk_wavelet", "FkWaveletSettings", True,
-          "seed 000 FKBC: 9/7 wavelet per channel with forward-kinematics compensation"),
+          "seed 000 FKBC: 9/7 wavelet per channel with forward-kinematics compensation",
+          spacing_share=1 / 16),  # its binary32 synthesis rounds more often: failed at 0.098
     Codec("ik-predict", 3, b"IKPR", 1, "ik_predict", "IkPredictSettings", True,
           "seed 000 IKBP: closed-loop inverse-kinematics prediction of joint angles"),
 )
