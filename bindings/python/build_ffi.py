@@ -23,11 +23,11 @@ OFFLINE_HEADER = RUNTIME / "src" / "offline.h"
 
 # Glue that only loops over the public API, so Python pays one call per clip, not per frame.
 GLUE = """
-int mcdpy_sample_many(const mcd_asset* asset, uint32_t clip, const float* times, uint32_t count,
+int mcdpy_sample_many(const mcd_asset* asset, uint32_t clip, const double* times, uint32_t count,
                       uint32_t flags, mcd_transform* out, uint32_t nodes, void* scratch);
 """
 GLUE_SOURCE = """
-int mcdpy_sample_many(const mcd_asset* asset, uint32_t clip, const float* times, uint32_t count,
+int mcdpy_sample_many(const mcd_asset* asset, uint32_t clip, const double* times, uint32_t count,
                       uint32_t flags, mcd_transform* out, uint32_t nodes, void* scratch) {
     uint32_t i;
     for (i = 0; i < count; ++i) {

@@ -43,7 +43,7 @@ extern "C" {
 
 /* Library version: major << 16 | minor << 8 | patch. */
 #define MCD_VERSION_MAJOR 0
-#define MCD_VERSION_MINOR 2
+#define MCD_VERSION_MINOR 3
 #define MCD_VERSION_PATCH 0
 #define MCD_VERSION ((MCD_VERSION_MAJOR << 16) | (MCD_VERSION_MINOR << 8) | MCD_VERSION_PATCH)
 
@@ -228,14 +228,21 @@ MCD_API mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_
  * Sample clip `clip` at `time_seconds` into `out_pose[0 .. node_count)` (node_count of the
  * clip's skeleton; `pose_capacity` is the caller's array length). Local transforms unless
  * MCD_SAMPLE_WORLD. Time is clamped to [0, duration] unless MCD_SAMPLE_LOOP; between frames
- * the codec's curve is evaluated unless MCD_SAMPLE_NEAREST. Does not allocate; every output
- * float is finite. Fails with MCD_ERROR_INVALID_ARGUMENT on a non-finite time or unknown
- * flags, MCD_ERROR_OUT_OF_RANGE on a bad clip index, MCD_ERROR_BUFFER_TOO_SMALL when
- * pose_capacity < node_count or the scratch is smaller than the clip needs,
- * MCD_ERROR_SCRATCH_MISMATCH when the scratch was initialised for another asset. Sampling
- * the same time twice gives the same pose, whatever was sampled in between.
+ * the codec's curve is evaluated unless MCD_SAMPLE_NEAREST. Time is a double (it was a float
+ * before 0.3): a float resolves only 0.49 ms two hours in, a double resolves any clip's frames.
+ * A time within 1e-4 frames (plus 4e-7 of the frame number, at most 1/128 frame) of a frame
+ * shows that frame exactly: frame / frame_rate computed in double lands on the frame's pose at
+ * any length, and computed in float up to about 190,000 frames. Between frames, the position in
+ * the clip is held as a float frame number (format limit: at most 2^24 frames), so its fraction
+ * is resolved to 2^-24 of the frame number (1/16 frame at 864,000 frames, 2 hours at 120 fps).
+ * MCD_SAMPLE_NEAREST rounds that float frame number (a half frame up, as before 0.3). Does not
+ * allocate; every output float is finite. Fails with MCD_ERROR_INVALID_ARGUMENT on a non-finite
+ * time or unknown flags, MCD_ERROR_OUT_OF_RANGE on a bad clip index, MCD_ERROR_BUFFER_TOO_SMALL
+ * when pose_capacity < node_count or the scratch is smaller than the clip needs,
+ * MCD_ERROR_SCRATCH_MISMATCH when the scratch was initialised for another asset. Sampling the
+ * same time twice gives the same pose, whatever was sampled in between.
  */
-MCD_API mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
+MCD_API mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, double time_seconds,
                               uint32_t flags, mcd_transform* out_pose, uint32_t pose_capacity,
                               void* scratch);
 

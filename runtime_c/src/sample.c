@@ -41,29 +41,45 @@ mcd_result mcd_scratch_init(const mcd_asset* asset, void* scratch, size_t scratc
     return MCD_OK;
 }
 
-/* Frame position in [0, frame_count - 1] for a time in seconds. */
-static float frame_position(float time_seconds, float rate, uint32_t frames, uint32_t flags) {
-    float last = (float)(frames - 1u);
-    float x = time_seconds * rate, r;
+/* Frame position in [0, frame_count - 1] for a time in seconds, found in double so that late
+ * frames of long clips are told apart, then held as the float the codecs take (exact for
+ * integer frames: frame counts are at most 2^24). */
+static float frame_position(double time_seconds, float rate, uint32_t frames, uint32_t flags) {
+    double last = (double)(frames - 1u);
+    double x = time_seconds * (double)rate, r;
     if (frames <= 1u) return 0.0f;
     if (flags & MCD_SAMPLE_LOOP) {
-        x = fmodf(x, last);
-        if (x < 0.0f) x += last;
-        if (!(x < last)) x = 0.0f; /* fmodf rounding can land exactly on `last` */
-    } else if (x < 0.0f) {
-        x = 0.0f;
+        x = fmod(x, last);
+        if (x < 0.0) x += last;
+        if (!(x < last)) x = 0.0; /* fmod rounding can land exactly on `last` */
+    } else if (x < 0.0) {
+        x = 0.0;
     } else if (x > last) {
         x = last;
     }
-    r = floorf(x + 0.5f);
-    /* Times computed as frame / rate in float land a few ulps off the frame: snap them. */
-    if ((flags & MCD_SAMPLE_NEAREST) || fabsf(x - r) < 1e-4f + 4e-7f * x) x = r;
+    if (flags & MCD_SAMPLE_NEAREST) {
+        /* Rounded as runtime 0.2 rounded its float position (x + 0.5 in float), so that a time
+         * at an exact half frame shows the frame it showed (the goldens record it). */
+        x = (double)floorf((float)x + 0.5f);
+    } else {
+        /* Times computed as frame / rate land a few ulps off the frame: snap them. 4e-7 x covers
+         * a float time's rounding (2^-24 of it, a few times over); the cap of 1/128 frame keeps
+         * the poses between frames in reach of a double time two hours in (float times computed
+         * as frame / rate still snap up to about 190,000 frames). */
+        r = floor(x + 0.5);
+        if (fabs(x - r) < fmin(1e-4 + 4e-7 * x, 1.0 / 128.0)) x = r;
+    }
     /* Rounding (NEAREST or the snap) can land on `last`, which loop mode shows as frame 0. */
-    if ((flags & MCD_SAMPLE_LOOP) ? !(x < last) : x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0f : last;
-    return x;
+    if ((flags & MCD_SAMPLE_LOOP) ? !(x < last) : x > last) x = (flags & MCD_SAMPLE_LOOP) ? 0.0 : last;
+    {
+        /* Rounding to float can reach `last` too (a position just under it, on a long clip). */
+        float xf = (float)x;
+        if ((flags & MCD_SAMPLE_LOOP) && !(xf < (float)last)) xf = 0.0f;
+        return xf;
+    }
 }
 
-mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds, uint32_t flags,
+mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, double time_seconds, uint32_t flags,
                       mcd_transform* out_pose, uint32_t pose_capacity, void* scratch) {
     const uint32_t known = MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS;
     scratch_header* h = (scratch_header*)scratch;
@@ -73,7 +89,8 @@ mcd_result mcd_sample(const mcd_asset* asset, uint32_t clip, float time_seconds,
     float x;
     int fresh;
     if (!asset || !asset->data || !out_pose || !scratch) return MCD_ERROR_INVALID_ARGUMENT;
-    if ((flags & ~known) != 0 || !mcd_finite(time_seconds)) return MCD_ERROR_INVALID_ARGUMENT;
+    if ((flags & ~known) != 0 || !(time_seconds == time_seconds && time_seconds - time_seconds == 0.0))
+        return MCD_ERROR_INVALID_ARGUMENT; /* not finite */
     if (h->magic != SCRATCH_MAGIC || h->data != asset->data || h->asset_size != asset->size ||
         h->crc != mcd_rd_u32(asset->data + 20))
         return MCD_ERROR_SCRATCH_MISMATCH;

@@ -240,10 +240,10 @@ class Asset:
         if not 0 <= index < len(self.clips):
             raise RuntimeResultError(lib.MCD_ERROR_OUT_OF_RANGE, "mcd_sample")
         nodes = self.clips[index].node_count
-        t = np.ascontiguousarray(times, dtype=np.float32)
+        t = np.ascontiguousarray(times, dtype=np.float64)  # seconds as the runtime takes them (double)
         out = np.empty((len(t), nodes, TRANSFORM_FLOATS), dtype=np.float32)
         code = lib.mcdpy_sample_many(
-            self._asset, index, ffi.cast("float*", ffi.from_buffer(t)), len(t), flags,
+            self._asset, index, ffi.cast("double*", ffi.from_buffer(t)), len(t), flags,
             ffi.cast("mcd_transform*", ffi.from_buffer(out)), nodes, self._scratch,
         )
         _check(code, "mcd_sample")
