@@ -86,7 +86,7 @@ mcd_result mcd_engine_rig_build(mcd_engine_rig *rig, const mcd_engine_asset *a, 
     return MCD_OK;
 }
 
-mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_t clip, float time, uint32_t flags) {
+mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_t clip, double time, uint32_t flags) {
     mcd_clip_info info;
     mcd_result r;
     if (!rig->bound || !a->opened || (flags & MCD_SAMPLE_WORLD)) return MCD_ERROR_INVALID_ARGUMENT;

@@ -50,7 +50,7 @@ mcd_result mcd_engine_rig_build(mcd_engine_rig *rig, const mcd_engine_asset *a, 
                                 const mcd_engine_allocator *mem, mcd_retarget_issue *issue);
 /* Samples clip `clip` of `a` (local; flags as mcd_sample, MCD_SAMPLE_WORLD refused) and
  * retargets it into rig->rig_pose. The clip must be of the rig's skeleton. */
-mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_t clip, float time, uint32_t flags);
+mcd_result mcd_engine_rig_pose(mcd_engine_rig *rig, mcd_engine_asset *a, uint32_t clip, double time, uint32_t flags);
 void mcd_engine_rig_close(mcd_engine_rig *rig, const mcd_engine_allocator *mem);
 
 /* A rotation matrix given by its rows, as a unit quaternion x y z w (Shepperd's method: the

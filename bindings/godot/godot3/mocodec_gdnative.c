@@ -307,7 +307,7 @@ static mcd_result sample_into_pose(instance *self, int argc, godot_variant **arg
     if (!self->a.opened) return MCD_ERROR_INVALID_ARGUMENT;
     if (argc < first + 3) return MCD_ERROR_INVALID_ARGUMENT;
     return mcd_sample(&self->a.asset, (uint32_t)core->godot_variant_as_int(argv[first]),
-                      (float)core->godot_variant_as_real(argv[first + 1]),
+                      core->godot_variant_as_real(argv[first + 1]),
                       (uint32_t)core->godot_variant_as_int(argv[first + 2]), self->a.pose,
                       self->a.asset.max_nodes, self->a.scratch);
 }
@@ -528,7 +528,7 @@ static godot_variant m_apply(godot_object *o, void *md, void *ud, int argc, godo
         return v_int(MCD_ERROR_INVALID_ARGUMENT);
     }
     r = mcd_engine_rig_pose(&self->rig, &self->a, (uint32_t)core->godot_variant_as_int(argv[1]),
-                            (float)core->godot_variant_as_real(argv[2]), (uint32_t)core->godot_variant_as_int(argv[3]));
+                            core->godot_variant_as_real(argv[2]), (uint32_t)core->godot_variant_as_int(argv[3]));
     if (r != MCD_OK) {
         report("MocodecAnimation.apply", r);
         return v_int(r);

@@ -736,7 +736,7 @@ int main(int argc, char **argv) {
         vcall(anim, "MocodecAnimation", "sample", v, 3, &ret);
         CHECK(ret.u.i == 10, "clip out of range -> MCD_ERROR_OUT_OF_RANGE (%lld)", (long long)ret.u.i);
         vcall(anim, "MocodecAnimation", "get_version", v, 0, &ret);
-        CHECK((ret.u.i >> 8) == 0x0002, "mcd_version 0.2.x (%llx)", (long long)ret.u.i);
+        CHECK((ret.u.i >> 8) == 0x0003, "mcd_version 0.3.x (%llx)", (long long)ret.u.i);
         vcall(anim, "MocodecAnimation", "get_data", v, 0, &ret);
         CHECK(ret.type == GDEXTENSION_VARIANT_TYPE_PACKED_BYTE_ARRAY && ret.u.bytes.size == asset_size &&
                   !memcmp(ret.u.bytes.data, asset, (size_t)asset_size), "data property round-trips");

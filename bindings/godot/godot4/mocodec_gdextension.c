@@ -268,7 +268,7 @@ static void animation_sample(void *p, const void *const *args, void *ret) {
     animation *self = p;
     mcd_result r = MCD_ERROR_INVALID_ARGUMENT;
     if (self->a.opened)
-        r = mcd_sample(&self->a.asset, (uint32_t) * (const int64_t *)args[0], (float)*(const double *)args[1],
+        r = mcd_sample(&self->a.asset, (uint32_t) * (const int64_t *)args[0], *(const double *)args[1],
                        (uint32_t) * (const int64_t *)args[2], self->a.pose, self->a.asset.max_nodes, self->a.scratch);
     if (r != MCD_OK) report("MocodecAnimation.sample", r);
     *(int64_t *)ret = r;
@@ -405,7 +405,7 @@ static void modifier_step(modifier *self, double delta) {
             self->playing = 0;
         }
     }
-    r = mcd_engine_rig_pose(&self->rig, &self->anim->a, (uint32_t)self->clip, (float)self->time,
+    r = mcd_engine_rig_pose(&self->rig, &self->anim->a, (uint32_t)self->clip, self->time,
                             (self->loop ? MCD_SAMPLE_LOOP : 0) | (self->contacts ? MCD_SAMPLE_CONTACTS : 0));
     if (r != MCD_OK) { /* e.g. the animation's data changed under us: rebind next time */
         report("MocodecSkeletonModifier", r);

@@ -338,7 +338,8 @@ export class Instance {
   }
 
   /**
-   * The pose of `clip` (index or name) at `time` seconds: node_count x 10 floats (rotation x y z w,
+   * The pose of `clip` (index or name) at `time` seconds (a JS number: the runtime takes a double
+   * since 0.3, so late frames of hours-long clips keep their precision): node_count x 10 floats (rotation x y z w,
    * translation x y z, scale x y z), local unless `world`. Written into `out` when given
    * (at least node_count * 10 floats; then nothing is allocated), else into a new Float32Array.
    */

@@ -37,12 +37,12 @@ namespace Mocodec
 
         public MocodecAsset Asset { get { return _asset; } }
 
-        public void Sample(int clip, float time, MocodecTransform[] poses, SampleFlags flags = SampleFlags.None)
+        public void Sample(int clip, double time, MocodecTransform[] poses, SampleFlags flags = SampleFlags.None)
         {
             MocodecRuntime.Check((int)TrySample(clip, time, poses, flags), "mcd_sample");
         }
 
-        public MocodecResult TrySample(int clip, float time, MocodecTransform[] poses, SampleFlags flags = SampleFlags.None)
+        public MocodecResult TrySample(int clip, double time, MocodecTransform[] poses, SampleFlags flags = SampleFlags.None)
         {
             if (poses == null)
                 throw new ArgumentNullException("poses");
@@ -50,12 +50,12 @@ namespace Mocodec
                 return TrySample(clip, time, p, poses.Length, flags);
         }
 
-        public void Sample(int clip, float time, MocodecTransform* poses, int capacity, SampleFlags flags = SampleFlags.None)
+        public void Sample(int clip, double time, MocodecTransform* poses, int capacity, SampleFlags flags = SampleFlags.None)
         {
             MocodecRuntime.Check((int)TrySample(clip, time, poses, capacity, flags), "mcd_sample");
         }
 
-        public MocodecResult TrySample(int clip, float time, MocodecTransform* poses, int capacity, SampleFlags flags = SampleFlags.None)
+        public MocodecResult TrySample(int clip, double time, MocodecTransform* poses, int capacity, SampleFlags flags = SampleFlags.None)
         {
             if (_scratch == null)
                 throw new ObjectDisposedException("MocodecContext");
@@ -65,12 +65,12 @@ namespace Mocodec
                                                        capacity < 0 ? 0u : (uint)capacity, _scratch);
         }
 
-        public void Sample(int clip, float time, Span<MocodecTransform> poses, SampleFlags flags = SampleFlags.None)
+        public void Sample(int clip, double time, Span<MocodecTransform> poses, SampleFlags flags = SampleFlags.None)
         {
             MocodecRuntime.Check((int)TrySample(clip, time, poses, flags), "mcd_sample");
         }
 
-        public MocodecResult TrySample(int clip, float time, Span<MocodecTransform> poses, SampleFlags flags = SampleFlags.None)
+        public MocodecResult TrySample(int clip, double time, Span<MocodecTransform> poses, SampleFlags flags = SampleFlags.None)
         {
             fixed (MocodecTransform* p = &MemoryMarshal.GetReference(poses))
                 return TrySample(clip, time, p, poses.Length, flags);

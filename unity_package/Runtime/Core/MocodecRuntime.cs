@@ -11,7 +11,7 @@ namespace Mocodec
         /// The patch number may differ; major and minor may not, since before 1.0 a minor
         /// version may change the ABI.</summary>
         public const uint ExpectedMajor = 0;
-        public const uint ExpectedMinor = 2;
+        public const uint ExpectedMinor = 3;
 
         static volatile bool s_checked;
 

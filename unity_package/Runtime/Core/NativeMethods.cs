@@ -160,7 +160,7 @@ namespace Mocodec
         internal static extern int ScratchInit(NativeAsset* asset, byte* scratch, UIntPtr scratchSize);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_sample")]
-        internal static extern int Sample(NativeAsset* asset, uint clip, float timeSeconds, uint flags,
+        internal static extern int Sample(NativeAsset* asset, uint clip, double timeSeconds, uint flags,
                                           MocodecTransform* outPose, uint poseCapacity, byte* scratch);
 
         [DllImport(Library, CallingConvention = CallingConvention.Cdecl, EntryPoint = "mcd_retarget_config_default")]

@@ -20,10 +20,10 @@ namespace Mocodec.Tests
             Assert.That((v >> 8) & 0xFF, Is.EqualTo(MocodecRuntime.ExpectedMinor));
         }
 
-        [TestCase(0x000200u, true)]
-        [TestCase(0x000207u, true)]
-        [TestCase(0x000100u, false)]
-        [TestCase(0x000300u, false)]
+        [TestCase(0x000300u, true)]
+        [TestCase(0x000307u, true)]
+        [TestCase(0x000200u, false)] // 0.2 took mcd_sample's time as a float
+        [TestCase(0x000400u, false)]
         [TestCase(0x000000u, false)]
         [TestCase(0x010100u, false)]
         public void VersionPolicy(uint version, bool compatible)
