@@ -10,7 +10,7 @@ extends SceneTree
 
 const TOLERANCE = 1e-5
 const WORLD = 1
-const EXPECTED_VERSION_MAJOR_MINOR = 0x000200  # MCD_VERSION 0.2.x
+const EXPECTED_VERSION_MAJOR_MINOR = 0x000300  # MCD_VERSION 0.3.x (0.3: mcd_sample takes a double time)
 const SCRIPT_PATH = "res://addons/mocodec/mocodec_animation.gdns"
 
 var passed = 0
