@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import forward_kinematics, halfway_world, held_intervals
+from .kinematics import forward_kinematics, halfway_world, held_intervals, node_major
 from .motion import Motion
 from .quantize import Quantizer
 from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
@@ -420,12 +420,13 @@ class Compensation:
         only (parent_rot and pos_i given there) when not None."""
         frames = slice(None) if rows is None else rows
         orig = self.rot_w[frames, i]
-        pos_w = self.pos_w[frames]
+        here = self.pos_w[frames, i]
         vs, us, ws = [], [], []
         inv = R.quat_conjugate(orig)
         for c in self.aim[i]:
-            vs.append(R.quat_rotate(inv, pos_w[:, c] - pos_w[:, i]))
-            us.append(pos_w[:, c] - pos_i)
+            there = self.pos_w[frames, c]  # one node's column: on ``rows``, not every node's
+            vs.append(R.quat_rotate(inv, there - here))
+            us.append(there - pos_i)
             ws.append(1.0)
         for k in range(3):
             e = np.zeros(3)
@@ -486,9 +487,9 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         n = sk.node_count
-        rot_d = np.empty((self.frames, n, 4))
-        pos_d = np.empty((self.frames, n, 3))
-        scale_d = np.empty((self.frames, n, 3))
+        rot_d = node_major((self.frames, n, 4))
+        pos_d = node_major((self.frames, n, 3))
+        scale_d = node_major((self.frames, n, 3))
         moved = np.zeros(n, dtype=bool)
         prev = self._decoded
         rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed

@@ -26,12 +26,12 @@ def forward_kinematics(
     """
     rotations = np.asarray(rotations, dtype=np.float64)
     translations = np.asarray(translations, dtype=np.float64)
-    world_rot = np.empty_like(rotations)
-    world_pos = np.empty_like(translations)
+    world_rot = node_major(rotations.shape)
+    world_pos = node_major(translations.shape)
     world_scale = None
     if scales is not None:
         scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape)
-        world_scale = np.empty_like(translations)
+        world_scale = node_major(translations.shape)
     for i, p in enumerate(skeleton.parents):
         if p < 0:
             world_rot[:, i] = rotations[:, i]
@@ -49,6 +49,14 @@ def forward_kinematics(
             world_scale = np.ones_like(translations)
         return world_rot, world_pos, world_scale
     return world_rot, world_pos
+
+
+def node_major(shape: tuple[int, ...]) -> np.ndarray:
+    """An uninitialised (F, N, d) array whose memory holds node after node: ``a[:, i]`` is
+    contiguous, as the node loops here and in the key-frame engine read and write it."""
+    if len(shape) != 3:
+        return np.empty(shape)
+    return np.empty((shape[1], shape[0], shape[2])).transpose(1, 0, 2)
 
 
 def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
