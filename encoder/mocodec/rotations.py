@@ -29,8 +29,10 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
     """Inverse of a unit quaternion."""
-    q = np.asarray(q, dtype=np.float64)
-    return np.concatenate((-q[..., :3], q[..., 3:]), axis=-1)
+    return np.asarray(q, dtype=np.float64) * _CONJUGATE
+
+
+_CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
