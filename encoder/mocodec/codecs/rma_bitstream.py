@@ -89,19 +89,19 @@ def bits_for(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def cell_count(frame_count: int, cell_shift: int) -> int:
+def cell_count(frame_count: int, cell_shift: "int | np.ndarray") -> "int | np.ndarray":
     """Cells of a clip: frame 0, the cells of frames 1 ... F - 2, the last frame."""
     if frame_count == 1:
         return 1
     return ((frame_count - 2 + (1 << cell_shift) - 1) >> cell_shift) + 2
 
 
-def key_cells(frames: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
-    """The cell of every key frame."""
+def key_cells(frames: np.ndarray, frame_count: int, cell_shift: "int | np.ndarray") -> np.ndarray:
+    """The cell of every key frame (for a column of cell shifts (S, 1), a row per shift)."""
     f = np.asarray(frames, dtype=np.int64)
     cells = np.where(f > 0, ((f - 1) >> cell_shift) + 1, 0)
     if frame_count > 1:
-        cells[f == frame_count - 1] = cell_count(frame_count, cell_shift) - 1
+        cells = np.where(f == frame_count - 1, cell_count(frame_count, cell_shift) - 1, cells)
     return cells
 
 
@@ -148,18 +148,24 @@ class _KeyTimes:
     length: int
 
 
-def _key_times_at(frames: np.ndarray, frame_count: int, cell_shift: int) -> _KeyTimes:
-    """The layout of key times in cells of ``2**cell_shift`` frames, and its length in bytes
-    (unary words, rank table, places), without packing them."""
+def _key_times_each(frames: np.ndarray, frame_count: int, cell_shifts: tuple[int, ...]) -> list[_KeyTimes]:
+    """The layouts of key times in cells of ``2**s`` frames for each s of ``cell_shifts``, and
+    their lengths in bytes (unary words, rank table, places), without packing them; the shifts
+    are worked out together, a row each."""
     K = len(frames)
-    cells = cell_count(frame_count, cell_shift)
-    where = key_cells(frames, frame_count, cell_shift)
-    places = frames - cell_starts(where, frame_count, cell_shift)
-    in_cell = cell_shift if np.any(places) else 0
-    length = (K + cells + 63) // 64 * 8 + fields_length((cells + 63) // 64 * bits_for(K))
-    if in_cell:
-        length += fields_length(K * in_cell)
-    return _KeyTimes(cell_shift, where, places, in_cell, length)
+    shifts = np.asarray(cell_shifts, dtype=np.int64)[:, None]
+    where = key_cells(frames, frame_count, shifts)
+    places = frames - cell_starts(where, frame_count, shifts)
+    placed = np.any(places, axis=1)
+    out = []
+    for j, cell_shift in enumerate(cell_shifts):
+        cells = cell_count(frame_count, cell_shift)
+        in_cell = cell_shift if placed[j] else 0
+        length = (K + cells + 63) // 64 * 8 + fields_length((cells + 63) // 64 * bits_for(K))
+        if in_cell:
+            length += fields_length(K * in_cell)
+        out.append(_KeyTimes(cell_shift, where[j], places[j], in_cell, length))
+    return out
 
 
 def _key_times_bytes(kt: _KeyTimes, frame_count: int) -> bytes:
@@ -180,8 +186,8 @@ def _key_times_bytes(kt: _KeyTimes, frame_count: int) -> bytes:
     return out
 
 
-def cell_starts(cells: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
-    """The first frame of each cell."""
+def cell_starts(cells: np.ndarray, frame_count: int, cell_shift: "int | np.ndarray") -> np.ndarray:
+    """The first frame of each cell (cell shifts broadcast as in :func:`key_cells`)."""
     c = np.asarray(cells, dtype=np.int64)
     last = cell_count(frame_count, cell_shift) - 1
     return np.where(c == 0, 0, np.where(c == last, frame_count - 1, 1 + (c - 1 << cell_shift)))
@@ -204,28 +210,37 @@ class _KeyValues:
     length: int
 
 
-def _key_values_at(q: np.ndarray, abits: np.ndarray, group_shift: int) -> _KeyValues:
-    """The layout of key values ``q`` (K, d) in groups of ``2**group_shift`` keys and its
-    length in bytes (group table and records), without packing them."""
+def _key_values_each(q: np.ndarray, abits: np.ndarray, group_shifts: tuple[int, ...]) -> list[_KeyValues]:
+    """The layouts of key values ``q`` (K, d) in groups of ``2**g`` keys for each g of
+    ``group_shifts``, and their lengths in bytes (group table and records), without packing
+    them. Every layout's groups are numbered on after the previous one's, so that the widths
+    of all of them come from one pass over all their records."""
     K, d = q.shape
-    G = 1 << group_shift
-    rows = (K - 1 + G - 1) // G + 1
-    groups = rows - 1
-    rec, r = chord_residuals(q, group_shift)
-    grp = rec >> group_shift
-    widths = np.zeros((rows, d), dtype=np.int64)
+    parts = [chord_residuals(q, g) for g in group_shifts]
+    groups = [(K - 1 + (1 << g) - 1) // (1 << g) for g in group_shifts]  # the rows less the closing one
+    first = np.concatenate(([0], np.cumsum(groups)))  # each layout's first group in the numbering
+    grp = np.concatenate([(rec >> g) + first[j] for j, ((rec, _), g) in enumerate(zip(parts, group_shifts))])
+    r = np.concatenate([res for _, res in parts])
     mag = np.abs(r)
-    if groups:
-        widths[:groups] = _widths(np.where(mag == 0, 0, _bit_length(mag) + 1), grp, groups, abits)
+    widths = np.zeros((int(first[-1]), d), dtype=np.int64)
+    if len(widths):
+        widths = _widths(np.where(mag == 0, 0, _bit_length(mag) + 1), grp, len(widths), abits)
     w_rec = widths[grp]  # (R, d)
     lim = np.where(w_rec > 0, (np.int64(1) << np.maximum(w_rec - 1, 0)) - 1, 0)
     escaped = (mag > lim) & (w_rec > 0)
-    group_bits = w_rec.sum(axis=1) + np.where(escaped, abits[None, :], 0).sum(axis=1)
-    starts = np.concatenate(([0], np.cumsum(np.bincount(grp, weights=group_bits, minlength=groups)
-                                            .astype(np.int64))))  # rows entries: the last is the end
-    offset_bits = bits_for(int(starts[-1]))
-    length = fields_length(rows * (offset_bits + d * WIDTH_BITS + int(abits.sum()))) + fields_length(starts[-1])
-    return _KeyValues(group_shift, rec, grp, r, widths, escaped, starts, offset_bits, length)
+    record_bits = w_rec.sum(axis=1) + np.where(escaped, abits[None, :], 0).sum(axis=1)
+    group_bits = np.bincount(grp, weights=record_bits, minlength=len(widths)).astype(np.int64)
+    out, at = [], 0
+    for j, ((rec, res), g) in enumerate(zip(parts, group_shifts)):
+        mine = slice(first[j], first[j + 1])
+        starts = np.concatenate(([0], np.cumsum(group_bits[mine])))  # rows entries: the last is the end
+        offset_bits = bits_for(int(starts[-1]))
+        rows = groups[j] + 1
+        length = fields_length(rows * (offset_bits + d * WIDTH_BITS + int(abits.sum()))) + fields_length(starts[-1])
+        out.append(_KeyValues(g, rec, rec >> g, res, np.concatenate((widths[mine], np.zeros((1, d), np.int64))),
+                              escaped[at:at + len(rec)], starts, offset_bits, length))
+        at += len(rec)
+    return out
 
 
 def _key_values_bytes(kv: _KeyValues, q: np.ndarray, abits: np.ndarray) -> tuple[bytes, bytes]:
@@ -273,8 +288,8 @@ def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...])
         raise ValueError("a track of a clip of several frames has at least two keys")
     abits = signed_bits(q)
     # The key times and the key values are sized independently: each choice is the smallest of its own.
-    kt = min((_key_times_at(frames, frame_count, cs) for cs in range(MAX_CELL_SHIFT + 1)), key=lambda o: o.length)
-    kv = min((_key_values_at(q, abits, g) for g in group_shifts), key=lambda o: o.length)
+    kt = min(_key_times_each(frames, frame_count, tuple(range(MAX_CELL_SHIFT + 1))), key=lambda o: o.length)
+    kv = min(_key_values_each(q, abits, group_shifts), key=lambda o: o.length)
     table, data = _key_values_bytes(kv, q, abits)
     body = _key_times_bytes(kt, frame_count) + table + data
     head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | kt.cell_shift << 1 | kv.group_shift << 3,
