@@ -50,6 +50,22 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + _cross(u, t)
 
 
+def rotate_axis(q: np.ndarray, axis: int, length: float) -> np.ndarray:
+    """``quat_rotate(q, v)`` for ``v`` = ``length`` along coordinate ``axis`` (0, 1, 2): the same
+    arithmetic with the products by v's zeros left out, so the same numbers (but for the sign
+    of a zero) at about a third of the work."""
+    q = np.asarray(q, dtype=np.float64)
+    k, i, j = axis, (axis + 1) % 3, (axis + 2) % 3
+    uk, ui, uj, w = q[..., k], q[..., i], q[..., j], q[..., 3]
+    ti = 2.0 * (uj * length)  # 2 (u x v): zero along the axis itself
+    tj = -(2.0 * (ui * length))
+    out = np.empty(q.shape[:-1] + (3,))
+    out[..., k] = length + (ui * tj - uj * ti)
+    out[..., i] = w * ti - uk * tj
+    out[..., j] = w * tj + uk * ti
+    return out
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.cross`` of (..., 3) vectors, the same arithmetic without its axis handling (the
     fitters rotate short arrays many times, where that handling is most of the cost)."""
