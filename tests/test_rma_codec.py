@@ -376,3 +376,32 @@ def test_key_grid_default_follows_the_tolerance():
     for bad in (3, 9):
         with pytest.raises(ValueError, match="key_grid"):
             RMASettings(Tolerance(1.0), key_grid=bad)
+
+
+def test_reused_track_bytes_equal_fresh_ones():
+    # A repair round writes its clip again with the previous round's tracks at hand: a track
+    # that changed in anything (keys, values, step, twist axis) is written anew, so the payload
+    # is the one written from scratch.
+    from mocodec.codecs.rma_bitstream import KIND_MRP, KIND_TWIST, CurveTrack, WrittenTracks, payload
+
+    rng = np.random.default_rng(5)
+    frames = 97
+
+    def track(kind: int, keys: int, step: float) -> CurveTrack:
+        f = np.unique(np.concatenate(([0, frames - 1], rng.integers(1, frames - 1, keys))))
+        d = 4 if kind == KIND_TWIST else 3
+        q = np.cumsum(rng.integers(-40, 41, (len(f), d)), axis=0)
+        return CurveTrack(kind, f, q, step, 0.01 if kind == KIND_TWIST else 0.0, np.array([10, -20, 300]),
+                          np.array([0, 32767, 0]) if kind == KIND_TWIST else None)
+
+    tracks = [track(KIND_MRP, 30, 1e-3), track(KIND_TWIST, 12, 2e-3), track(KIND_MRP, 50, 5e-4)]
+    modes = [(2, 0, 0), (2, 0, 0), (2, 0, 0)]
+    written = WrittenTracks()
+    assert payload(frames, modes, [], tracks, written=written) == payload(frames, modes, [], tracks)
+    changed = [CurveTrack(t.kind, t.frames, t.q.copy(), t.step, t.angle_step, t.ref_codes, t.axis_codes)
+               for t in tracks]
+    changed[0].step = 2e-3
+    changed[1].axis_codes = np.array([0, 0, 32767])
+    changed[2].q[7, 1] += 1
+    assert payload(frames, modes, [], changed, written=written) == payload(frames, modes, [], changed)
+    assert payload(frames, modes, [], changed, written=written) != payload(frames, modes, [], tracks)

@@ -18,6 +18,7 @@ from mocodec.rotations import (
     quat_rotate,
     quat_to_euler,
     quat_to_matrix,
+    rotate_axis,
 )
 
 
@@ -103,6 +104,19 @@ def test_quat_multiply_and_rotate_match_scipy() -> None:
     np.testing.assert_allclose(quat_multiply(quat_conjugate(a), a)[:, 3] ** 2, 1.0, atol=1e-12)
     # Broadcasting over leading axes: one rotation applied to many vectors.
     np.testing.assert_allclose(quat_rotate(a[:1], v), ra[0].apply(v), atol=1e-12)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_rotate_axis_is_quat_rotate_of_that_axis(axis: int) -> None:
+    # The shell vertices of the error metric: the same numbers as the general rotation, also
+    # where a quaternion has exact zeros (the rest pose) or points the other way.
+    q = random_quats(500, seed=axis).reshape(50, 10, 4)
+    q[0] = [0.0, 0.0, 0.0, 1.0]
+    q[1, :, axis] = 0.0
+    q[2] = -q[2]
+    v = np.zeros(3)
+    v[axis] = 0.53
+    assert np.array_equal(rotate_axis(q, axis, 0.53), quat_rotate(q, v))
 
 
 def test_mrp_round_trip() -> None:

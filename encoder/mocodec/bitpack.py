@@ -65,3 +65,9 @@ def fields_bytes(values: np.ndarray, widths: np.ndarray, align: int = 4) -> byte
     words, total = pack_fields(values, widths)
     data = words.astype("<u8").tobytes()[: (total + 7) // 8]
     return data + bytes((-len(data)) % align)
+
+
+def fields_length(total_bits: int, align: int = 4) -> int:
+    """The length of :func:`fields_bytes` for fields of ``total_bits`` bits in all, without packing them."""
+    used = (int(total_bits) + 7) // 8
+    return used + (-used) % align

@@ -97,6 +97,10 @@ class CurveTarget:
     def __call__(self, recon: np.ndarray) -> np.ndarray:
         return self._error(recon, self.target)
 
+    def at(self, recon: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The error of ``recon`` on frames ``rows`` only (``recon`` holds those rows)."""
+        return self._error(recon, self.target[rows])
+
     def half(self, recon_half: np.ndarray) -> np.ndarray:
         """Error of the curve at frames + 1/2 (F - 1, d) against :attr:`half_target`."""
         return self._error(recon_half, self.half_target)

@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import forward_kinematics, halfway_world, held_intervals
+from .kinematics import forward_kinematics, halfway_world, held_intervals, node_major
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -254,6 +254,19 @@ def untouched_keys(track: Track) -> np.ndarray | None:
     return keys[seen[hi + 1] == seen[lo]]
 
 
+PROBE_STRIDE = 16  # a constant is first tried on every 16th frame: most tracks fail there
+
+
+def _within_budget(deviation: Callable[[np.ndarray], np.ndarray], budget: np.ndarray) -> bool:
+    """Whether ``deviation(rows)`` (per frame, on frames ``rows``) is within ``budget`` on every
+    frame: tried on every :data:`PROBE_STRIDE`-th frame first, then, if none is over, on all.
+    The same answer as the check on all frames (each frame's deviation is its own)."""
+    probe = np.arange(0, len(budget), PROBE_STRIDE)
+    if not np.all(deviation(probe) <= budget[probe]):
+        return False
+    return bool(np.all(deviation(np.arange(len(budget))) <= budget))
+
+
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
               keep: np.ndarray | None = None) -> None:
@@ -269,17 +282,19 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
     if half_budget is not None:
         err.half_target = halfway_target(track)
     if track.rest is not None:  # the rest value costs nothing: take it when within budget
-        rest = np.broadcast_to(track.rest, track.target.shape)
-        dev = (np.linalg.norm(rest - track.target, axis=1) if track.kind in VECTOR_KINDS
-               else R.quat_angle(track.target, rest))
-        if np.all(dev <= track.budget):
+        rest = track.rest
+
+        def rest_dev(rows: np.ndarray) -> np.ndarray:
+            target = track.target[rows]
+            return (np.linalg.norm(rest - target, axis=1) if track.kind in VECTOR_KINDS
+                    else R.quat_angle(target, np.broadcast_to(rest, target.shape)))
+        if _within_budget(rest_dev, track.budget):
             track.keys, track.quantizer, track.constant, track.recon = None, None, track.rest, None
             return
     if track.kind != KIND_TWIST:
         const = _constant_value(track)
-        recon = np.broadcast_to(const if track.kind in VECTOR_KINDS else np.zeros(3), (frames, 3))
-        dev = err(recon)
-        if np.all(dev <= track.budget):
+        flat = const if track.kind in VECTOR_KINDS else np.zeros(3)
+        if _within_budget(lambda rows: err.at(np.broadcast_to(flat, (len(rows), 3)), rows), track.budget):
             track.keys, track.quantizer, track.constant, track.recon = None, None, const, None
             return
     track.constant = None
@@ -427,20 +442,18 @@ class Compensation:
         only (parent_rot and pos_i given there) when not None."""
         frames = slice(None) if rows is None else rows
         orig = self.rot_w[frames, i]
-        pos_w = self.pos_w[frames]
-        vs, us, ws = [], [], []
-        inv = R.quat_conjugate(orig)
-        for c in self.aim[i]:
-            vs.append(R.quat_rotate(inv, pos_w[:, c] - pos_w[:, i]))
-            us.append(pos_w[:, c] - pos_i)
-            ws.append(1.0)
-        for k in range(3):
-            e = np.zeros(3)
-            e[k] = self.shell
-            vs.append(np.broadcast_to(e, (len(orig), 3)))
-            us.append(R.quat_rotate(orig, e))
-            ws.append(0.25 if self.aim[i] else 1.0)
-        world = R.quat_make_continuous(native.wahba(np.stack(vs, axis=1), np.stack(us, axis=1), np.asarray(ws), orig))
+        here = self.pos_w[frames, i]
+        aim = self.aim[i]
+        # The aim points (their columns alone: on ``rows``, not every node's), then the shell
+        # vertices; each set rotated in one call.
+        there = (np.stack([self.pos_w[frames, c] for c in aim], axis=1) if aim
+                 else np.empty((len(orig), 0, 3)))
+        shell = np.eye(3) * self.shell
+        vs = np.concatenate((R.quat_rotate(R.quat_conjugate(orig)[:, None], there - here[:, None]),
+                             np.broadcast_to(shell, (len(orig), 3, 3))), axis=1)
+        us = np.concatenate((there - pos_i[:, None], R.quat_rotate(orig[:, None], shell)), axis=1)
+        ws = np.array([1.0] * len(aim) + [0.25 if aim else 1.0] * 3)
+        world = R.quat_make_continuous(native.wahba(vs, us, ws, orig))
         if parent_rot is None:
             return world
         return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
@@ -493,9 +506,9 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         n = sk.node_count
-        rot_d = np.empty((self.frames, n, 4))
-        pos_d = np.empty((self.frames, n, 3))
-        scale_d = np.empty((self.frames, n, 3))
+        rot_d = node_major((self.frames, n, 4))
+        pos_d = node_major((self.frames, n, 3))
+        scale_d = node_major((self.frames, n, 3))
         moved = np.zeros(n, dtype=bool)
         prev = self._decoded
         rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed

@@ -24,14 +24,14 @@ def forward_kinematics(
     non-uniform scale above a rotated child this differs from a glTF matrix product (which
     would shear); the positions of the nodes are the same wherever the scale is uniform.
     """
-    rotations = np.asarray(rotations, dtype=np.float64)
-    translations = np.asarray(translations, dtype=np.float64)
-    world_rot = np.empty_like(rotations)
-    world_pos = np.empty_like(translations)
+    rotations = as_node_major(rotations)  # one copy, then every node's rows are contiguous
+    translations = as_node_major(translations)
+    world_rot = node_major(rotations.shape)
+    world_pos = node_major(translations.shape)
     world_scale = None
     if scales is not None:
-        scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape)
-        world_scale = np.empty_like(translations)
+        scales = as_node_major(np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape))
+        world_scale = node_major(translations.shape)
     for i, p in enumerate(skeleton.parents):
         if p < 0:
             world_rot[:, i] = rotations[:, i]
@@ -49,6 +49,24 @@ def forward_kinematics(
             world_scale = np.ones_like(translations)
         return world_rot, world_pos, world_scale
     return world_rot, world_pos
+
+
+def node_major(shape: tuple[int, ...]) -> np.ndarray:
+    """An uninitialised (F, N, d) array whose memory holds node after node: ``a[:, i]`` is
+    contiguous, as the node loops here and in the key-frame engine read and write it."""
+    if len(shape) != 3:
+        return np.empty(shape)
+    return np.empty((shape[1], shape[0], shape[2])).transpose(1, 0, 2)
+
+
+def as_node_major(a: np.ndarray) -> np.ndarray:
+    """``a`` (F, N, d) as float64 held node after node (:func:`node_major`), copied if it is not."""
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim != 3 or a.transpose(1, 0, 2).flags.c_contiguous:
+        return a
+    out = node_major(a.shape)
+    out[...] = a
+    return out
 
 
 def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .motion import Motion, Skeleton
-from .rotations import quat_angle, quat_rotate
+from .rotations import quat_angle, rotate_axis
 
 ACL_BYTES_PER_BONE_SAMPLE = 40  # float32 quaternion + translation + scale per bone per sample
 
@@ -134,10 +134,8 @@ class ErrorMetric:
         d = self.shell_cm / self.cm_per_unit
         worst = np.zeros(pos_o.shape[:2])
         for axis in range(3):
-            v = np.zeros(3)
-            v[axis] = d
-            a = pos_o + quat_rotate(rot_o, v)
-            b = pos_d + quat_rotate(rot_d, v)
+            a = pos_o + rotate_axis(rot_o, axis, d)
+            b = pos_d + rotate_axis(rot_d, axis, d)
             worst = np.maximum(worst, np.linalg.norm(a - b, axis=-1))
         return worst * self.cm_per_unit
 

@@ -28,7 +28,7 @@ from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
 from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
-from .rma_bitstream import GROUP_SHIFTS, CurveTrack, payload
+from .rma_bitstream import GROUP_SHIFTS, CurveTrack, WrittenTracks, payload
 
 if TYPE_CHECKING:
     from ..bake import Runner
@@ -90,11 +90,13 @@ def curve_track(t: Track) -> CurveTrack:
                       ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=t.split)
 
 
-def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
-    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2)."""
+def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS,
+              written: WrittenTracks | None = None) -> bytes:
+    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2); ``written``: the tracks
+    of this clip's previous payload, not packed again where unchanged."""
     rows, constants, animated = node_modes(motion, tracks)
     modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
-    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts)
+    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts, written)
 
 
 JUMP_CM = 20.0  # a point moving this far in one frame is the capture jumping, not motion
@@ -119,12 +121,13 @@ class RMAFitter(KeyframeFitter):
         self.split = frame0_jumps(motion, cm_per_unit)
         super().__init__(motion, cm_per_unit, settings)
         self.key_grid = settings.key_grid
+        self.written = WrittenTracks()
 
     def mandatory_keys(self) -> np.ndarray:
         return np.unique([0, 1, self.frames - 1] if self.split else [0, self.frames - 1])
 
     def payload(self, tracks: list[Track]) -> bytes:
-        return serialize(self.motion, tracks, self.settings.group_shifts)
+        return serialize(self.motion, tracks, self.settings.group_shifts, self.written)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,

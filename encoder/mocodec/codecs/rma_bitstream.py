@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bitpack import fields_bytes
+from ..bitpack import fields_bytes, fields_length
 
 PAYLOAD_HEADER = 32
 WIDTH_BITS = 4
@@ -75,15 +75,12 @@ def signed_bits(a: np.ndarray) -> np.ndarray:
 
 
 def _bit_length(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, dtype=np.int64)
-    out = np.zeros(x.shape, dtype=np.int64)
-    nz = x > 0
-    out[nz] = np.floor(np.log2(x[nz].astype(np.float64))).astype(np.int64) + 1
-    # log2 rounding near powers of two: fix up exactly.
-    too_small = nz & ((np.int64(1) << np.maximum(out, 0)) <= x)
-    out[too_small] += 1
-    too_big = nz & ((np.int64(1) << np.maximum(out - 1, 0)) > x)
-    out[too_big] -= 1
+    """Bits of each value (0 for values <= 0): the exponent of its float64, exact below 2**53."""
+    x = np.maximum(np.asarray(x, dtype=np.int64), 0)
+    out = np.frexp(x.astype(np.float64))[1].astype(np.int64)
+    big = x >= np.int64(1) << 53
+    if np.any(big):
+        out[big] = [int(v).bit_length() for v in x[big]]
     return out
 
 
@@ -92,19 +89,19 @@ def bits_for(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def cell_count(frame_count: int, cell_shift: int) -> int:
+def cell_count(frame_count: int, cell_shift: "int | np.ndarray") -> "int | np.ndarray":
     """Cells of a clip: frame 0, the cells of frames 1 ... F - 2, the last frame."""
     if frame_count == 1:
         return 1
     return ((frame_count - 2 + (1 << cell_shift) - 1) >> cell_shift) + 2
 
 
-def key_cells(frames: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
-    """The cell of every key frame."""
+def key_cells(frames: np.ndarray, frame_count: int, cell_shift: "int | np.ndarray") -> np.ndarray:
+    """The cell of every key frame (for a column of cell shifts (S, 1), a row per shift)."""
     f = np.asarray(frames, dtype=np.int64)
     cells = np.where(f > 0, ((f - 1) >> cell_shift) + 1, 0)
     if frame_count > 1:
-        cells[f == frame_count - 1] = cell_count(frame_count, cell_shift) - 1
+        cells = np.where(f == frame_count - 1, cell_count(frame_count, cell_shift) - 1, cells)
     return cells
 
 
@@ -123,57 +120,161 @@ def chord_residuals(q: np.ndarray, group_shift: int) -> tuple[np.ndarray, np.nda
     return rec, q[rec] - pred
 
 
-def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: int) -> tuple[np.ndarray, int]:
-    """Per group the field width (0 ... 15) with the fewest bits for records whose values
-    need ``need`` bits each (escaped past the width, at ``outlier_bits`` each), and the bits."""
+def _widths(need: np.ndarray, grp: np.ndarray, groups: int, outlier_bits: np.ndarray) -> np.ndarray:
+    """Per group and component the field width (0 ... 15) with the fewest bits for records
+    whose values need ``need`` (R, d) bits each (escaped past the width, at ``outlier_bits``
+    (d,) each, plus the decoder's penalty), as (groups, d)."""
+    d = need.shape[1]
     counts = np.bincount(grp, minlength=groups)
-    hist = np.zeros((groups, 33), dtype=np.int64)
-    np.add.at(hist, (grp, np.minimum(need, 32)), 1)
-    over = counts[:, None] - np.cumsum(hist, axis=1)  # over[:, w]: records needing more than w
+    cell = (grp[:, None] * d + np.arange(d)[None, :]) * 33 + np.minimum(need, 32)
+    hist = np.bincount(cell.ravel(), minlength=groups * d * 33).reshape(groups, d, 33)
+    over = counts[:, None, None] - np.cumsum(hist, axis=2)  # over[g, c, w]: records needing more than w
     w = np.arange(MAX_WIDTH + 1)
-    cost = counts[:, None] * w[None, :] + over[:, : MAX_WIDTH + 1] * (outlier_bits + ESCAPE_PENALTY_BITS)
-    cost[:, 0] = np.where(over[:, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
-    best = np.argmin(cost, axis=1)
-    return best, int((counts * best + over[np.arange(groups), best] * outlier_bits).sum())
+    cost = (counts[:, None, None] * w[None, None, :]
+            + over[:, :, : MAX_WIDTH + 1] * (np.asarray(outlier_bits)[None, :, None] + ESCAPE_PENALTY_BITS))
+    cost[:, :, 0] = np.where(over[:, :, 0] == 0, 0, np.iinfo(np.int64).max // 4)  # width 0: no escapes
+    return np.argmin(cost, axis=2)
 
 
-def _key_times(frames: np.ndarray, frame_count: int, cell_shift: int) -> tuple[int, int, bytes]:
-    """(cell shift, bits of each key's place in its cell (0 when every key is on its cell's
-    first frame), bytes): the unary cells (key k's one at bit cell_k + k, each cell closed by
-    a zero; 64-bit little-endian words), the rank table (keys in the cells below every 64th)
-    and the places."""
-    f = np.asarray(frames, dtype=np.int64)
-    K = len(f)
-    cells = cell_count(frame_count, cell_shift)
+@dataclass
+class _KeyTimes:
+    """Key times in cells of ``2**cell_shift`` frames: each key's cell, its place in the cell,
+    the bits of a place (0 when every key is on its cell's first frame) and the bytes they take."""
+
+    cell_shift: int
+    cells: np.ndarray
+    places: np.ndarray
+    in_cell: int
+    length: int
+
+
+def _key_times_each(frames: np.ndarray, frame_count: int, cell_shifts: tuple[int, ...]) -> list[_KeyTimes]:
+    """The layouts of key times in cells of ``2**s`` frames for each s of ``cell_shifts``, and
+    their lengths in bytes (unary words, rank table, places), without packing them; the shifts
+    are worked out together, a row each."""
+    K = len(frames)
+    shifts = np.asarray(cell_shifts, dtype=np.int64)[:, None]
+    where = key_cells(frames, frame_count, shifts)
+    places = frames - cell_starts(where, frame_count, shifts)
+    placed = np.any(places, axis=1)
+    out = []
+    for j, cell_shift in enumerate(cell_shifts):
+        cells = cell_count(frame_count, cell_shift)
+        in_cell = cell_shift if placed[j] else 0
+        length = (K + cells + 63) // 64 * 8 + fields_length((cells + 63) // 64 * bits_for(K))
+        if in_cell:
+            length += fields_length(K * in_cell)
+        out.append(_KeyTimes(cell_shift, where[j], places[j], in_cell, length))
+    return out
+
+
+def _key_times_bytes(kt: _KeyTimes, frame_count: int) -> bytes:
+    """The key times' bytes: the unary cells (key k's one at bit cell_k + k, each cell closed
+    by a zero; 64-bit little-endian words), the rank table (keys in the cells below every
+    64th) and the places."""
+    K = len(kt.cells)
+    cells = cell_count(frame_count, kt.cell_shift)
     words = (K + cells + 63) // 64
-    where = key_cells(f, frame_count, cell_shift)
     unary = np.zeros(words * 64, dtype=np.uint8)
-    unary[where + np.arange(K)] = 1
-    per_cell = np.bincount(where, minlength=cells)
+    unary[kt.cells + np.arange(K)] = 1
+    per_cell = np.bincount(kt.cells, minlength=cells)
     rank = np.concatenate(([0], np.cumsum(per_cell)))[np.arange((cells + 63) // 64) * RANK_CELLS]
     out = np.packbits(unary, bitorder="little").tobytes() + fields_bytes(rank, bits_for(K))
-    places = f - cell_starts(where, frame_count, cell_shift)
-    in_cell = cell_shift if np.any(places) else 0
-    if in_cell:
-        out += fields_bytes(places, in_cell)
-    return cell_shift, in_cell, out
+    if kt.in_cell:
+        out += fields_bytes(kt.places, kt.in_cell)
+    assert len(out) == kt.length
+    return out
 
 
-def cell_starts(cells: np.ndarray, frame_count: int, cell_shift: int) -> np.ndarray:
-    """The first frame of each cell."""
+def cell_starts(cells: np.ndarray, frame_count: int, cell_shift: "int | np.ndarray") -> np.ndarray:
+    """The first frame of each cell (cell shifts broadcast as in :func:`key_cells`)."""
     c = np.asarray(cells, dtype=np.int64)
     last = cell_count(frame_count, cell_shift) - 1
     return np.where(c == 0, 0, np.where(c == last, frame_count - 1, 1 + (c - 1 << cell_shift)))
 
 
+@dataclass
+class _KeyValues:
+    """Key values in groups of ``2**group_shift`` keys: the records (keys other than the
+    anchors) with their group and residuals, each group's widths, which residuals escape,
+    every group's bit offset (the last entry the end) and the bytes of table and data."""
+
+    group_shift: int
+    rec: np.ndarray
+    grp: np.ndarray
+    residuals: np.ndarray
+    widths: np.ndarray
+    escaped: np.ndarray
+    starts: np.ndarray
+    offset_bits: int
+    length: int
+
+
+def _key_values_each(q: np.ndarray, abits: np.ndarray, group_shifts: tuple[int, ...]) -> list[_KeyValues]:
+    """The layouts of key values ``q`` (K, d) in groups of ``2**g`` keys for each g of
+    ``group_shifts``, and their lengths in bytes (group table and records), without packing
+    them. Every layout's groups are numbered on after the previous one's, so that the widths
+    of all of them come from one pass over all their records."""
+    K, d = q.shape
+    parts = [chord_residuals(q, g) for g in group_shifts]
+    groups = [(K - 1 + (1 << g) - 1) // (1 << g) for g in group_shifts]  # the rows less the closing one
+    first = np.concatenate(([0], np.cumsum(groups)))  # each layout's first group in the numbering
+    grp = np.concatenate([(rec >> g) + first[j] for j, ((rec, _), g) in enumerate(zip(parts, group_shifts))])
+    r = np.concatenate([res for _, res in parts])
+    mag = np.abs(r)
+    widths = np.zeros((int(first[-1]), d), dtype=np.int64)
+    if len(widths):
+        widths = _widths(np.where(mag == 0, 0, _bit_length(mag) + 1), grp, len(widths), abits)
+    w_rec = widths[grp]  # (R, d)
+    lim = np.where(w_rec > 0, (np.int64(1) << np.maximum(w_rec - 1, 0)) - 1, 0)
+    escaped = (mag > lim) & (w_rec > 0)
+    record_bits = w_rec.sum(axis=1) + np.where(escaped, abits[None, :], 0).sum(axis=1)
+    group_bits = np.bincount(grp, weights=record_bits, minlength=len(widths)).astype(np.int64)
+    out, at = [], 0
+    for j, ((rec, res), g) in enumerate(zip(parts, group_shifts)):
+        mine = slice(first[j], first[j + 1])
+        starts = np.concatenate(([0], np.cumsum(group_bits[mine])))  # rows entries: the last is the end
+        offset_bits = bits_for(int(starts[-1]))
+        rows = groups[j] + 1
+        length = fields_length(rows * (offset_bits + d * WIDTH_BITS + int(abits.sum()))) + fields_length(starts[-1])
+        out.append(_KeyValues(g, rec, rec >> g, res, np.concatenate((widths[mine], np.zeros((1, d), np.int64))),
+                              escaped[at:at + len(rec)], starts, offset_bits, length))
+        at += len(rec)
+    return out
+
+
+def _key_values_bytes(kv: _KeyValues, q: np.ndarray, abits: np.ndarray) -> tuple[bytes, bytes]:
+    """(group table, records) of a key-value layout: per group its bit offset, widths and
+    anchor whole; then by group, each record's fields in record and component order (the
+    residual, or the escape code) followed by the group's escaped values whole."""
+    one = np.int64(1)
+    K, d = q.shape
+    G = 1 << kv.group_shift
+    rows = len(kv.widths)
+    rec, grp = kv.rec, kv.grp
+    w_rec = kv.widths[grp]
+    field_vals = np.where(kv.escaped, one << np.maximum(w_rec - 1, 0), kv.residuals % (one << w_rec))
+    exc_rows, exc_comp = np.nonzero(kv.escaped)
+    exc_wids = abits[exc_comp]
+    exc_vals = q[rec[exc_rows], exc_comp] & ((one << exc_wids) - 1)
+    f_group = np.concatenate((np.repeat(grp, d), grp[exc_rows]))
+    f_part = np.concatenate((np.zeros(len(rec) * d, dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
+    f_order = np.concatenate((np.arange(len(rec) * d), np.arange(len(exc_rows))))
+    order = np.lexsort((f_order, f_part, f_group))
+    data = fields_bytes(np.concatenate((field_vals.ravel(), exc_vals))[order],
+                        np.concatenate((w_rec.ravel(), exc_wids))[order])
+    anchors = q[np.minimum(np.arange(rows) * G, K - 1)]
+    e_vals = [kv.starts[:, None], kv.widths, anchors & ((one << abits) - 1)]
+    e_wids = [np.full((rows, 1), kv.offset_bits), np.full((rows, d), WIDTH_BITS), np.broadcast_to(abits, (rows, d))]
+    table = fields_bytes(np.concatenate(e_vals, axis=1).ravel(), np.concatenate(e_wids, axis=1).ravel())
+    assert len(table) + len(data) == kv.length
+    return table, data
+
+
 def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple[bytes, bytes]:
-    """(descriptor, data) of one track: of the group sizes ``2**group_shifts`` the smallest."""
-    options = [_track_bytes_at(t, frame_count, g) for g in group_shifts]
-    return min(options, key=lambda o: len(o[0]) + len(o[1]))
-
-
-def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[bytes, bytes]:
-    """(descriptor, data) of one track in groups of ``2**group_shift`` keys."""
+    """(descriptor, data) of one track: of the cell sizes (up to ``2**MAX_CELL_SHIFT`` frames)
+    and the group sizes ``2**group_shifts`` the ones with the fewest bytes (the first on a tie).
+    Every choice is sized before anything is packed, and only the chosen one is packed."""
     q = np.asarray(t.q, dtype=np.int64)
     frames = np.asarray(t.frames, dtype=np.int64)
     K, d = q.shape
@@ -185,47 +286,14 @@ def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[
         raise ValueError("key frames must increase from 0 to the last frame")
     if K == 1 and frame_count != 1:
         raise ValueError("a track of a clip of several frames has at least two keys")
-    one = np.int64(1)
     abits = signed_bits(q)
-    # Key times: of the cell sizes, the one with the fewest bytes.
-    cell_shift, in_cell, times = min((_key_times(frames, frame_count, cs) for cs in range(MAX_CELL_SHIFT + 1)),
-                                     key=lambda o: len(o[2]))
-    # Key values: anchors whole in the group table, the others residuals from the chord.
-    G = 1 << group_shift
-    rows = (K - 1 + G - 1) // G + 1
-    groups = rows - 1
-    rec, r = chord_residuals(q, group_shift)
-    grp = rec >> group_shift
-    widths = np.zeros((rows, d), dtype=np.int64)
-    mag = np.abs(r)
-    for c in range(d if groups else 0):
-        widths[:groups, c], _ = _widths(np.where(mag[:, c] == 0, 0, _bit_length(mag[:, c]) + 1), grp, groups,
-                                        int(abits[c]))
-    w_rec = widths[grp]  # (R, d)
-    lim = np.where(w_rec > 0, (one << np.maximum(w_rec - 1, 0)) - 1, 0)
-    escaped = (mag > lim) & (w_rec > 0)
-    field_vals = np.where(escaped, one << np.maximum(w_rec - 1, 0), r % (one << w_rec))
-    exc_rows, exc_comp = np.nonzero(escaped)
-    exc_wids = abits[exc_comp]
-    exc_vals = q[rec[exc_rows], exc_comp] & ((one << exc_wids) - 1)
-    group_bits = np.bincount(grp, weights=w_rec.sum(axis=1), minlength=groups).astype(np.int64)
-    group_bits += np.bincount(grp[exc_rows], weights=exc_wids, minlength=groups).astype(np.int64)
-    starts = np.concatenate(([0], np.cumsum(group_bits)))  # rows entries: the last is the end
-    # Fields in order: by group, records before outliers, in record order, then component.
-    f_group = np.concatenate((np.repeat(grp, d), grp[exc_rows]))
-    f_part = np.concatenate((np.zeros(len(rec) * d, dtype=np.int64), np.ones(len(exc_rows), dtype=np.int64)))
-    f_order = np.concatenate((np.arange(len(rec) * d), np.arange(len(exc_rows))))
-    order = np.lexsort((f_order, f_part, f_group))
-    data = fields_bytes(np.concatenate((field_vals.ravel(), exc_vals))[order],
-                        np.concatenate((w_rec.ravel(), exc_wids))[order])
-    offset_bits = bits_for(int(starts[-1]))
-    anchors = q[np.minimum(np.arange(rows) * G, K - 1)]
-    e_vals = [starts[:, None], widths, anchors & ((one << abits) - 1)]
-    e_wids = [np.full((rows, 1), offset_bits), np.full((rows, d), WIDTH_BITS), np.broadcast_to(abits, (rows, d))]
-    table = fields_bytes(np.concatenate(e_vals, axis=1).ravel(), np.concatenate(e_wids, axis=1).ravel())
-    body = times + table + data
-    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | cell_shift << 1 | group_shift << 3, offset_bits,
-                       in_cell, K, len(data), t.step)
+    # The key times and the key values are sized independently: each choice is the smallest of its own.
+    kt = min(_key_times_each(frames, frame_count, tuple(range(MAX_CELL_SHIFT + 1))), key=lambda o: o.length)
+    kv = min(_key_values_each(q, abits, group_shifts), key=lambda o: o.length)
+    table, data = _key_values_bytes(kv, q, abits)
+    body = _key_times_bytes(kt, frame_count) + table + data
+    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | kt.cell_shift << 1 | kv.group_shift << 3,
+                       kv.offset_bits, kt.in_cell, K, len(data), t.step)
     head += bytes([int(b) for b in abits] + [0] * (4 - d))
     if t.kind in (KIND_MRP, KIND_TWIST):
         head += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)
@@ -235,18 +303,52 @@ def _track_bytes_at(t: CurveTrack, frame_count: int, group_shift: int) -> tuple[
     return head, body
 
 
+class WrittenTracks:
+    """The (descriptor, data) of the tracks of the last payload written, by content: a repair
+    round refits a few tracks of a clip and writes the others again unchanged."""
+
+    def __init__(self) -> None:
+        self._last: dict[tuple, tuple[bytes, bytes]] = {}
+
+    def write(self, tracks: list[CurveTrack], frame_count: int,
+              group_shifts: tuple[int, ...]) -> list[tuple[bytes, bytes]]:
+        """Every track's (descriptor, data), those seen in the last call reused; only this
+        call's are kept."""
+        now: dict[tuple, tuple[bytes, bytes]] = {}
+        parts = []
+        for t in tracks:
+            key = _content(t, frame_count, group_shifts)
+            part = self._last.get(key) or now.get(key) or _track_bytes(t, frame_count, group_shifts)
+            now[key] = part
+            parts.append(part)
+        self._last = now
+        return parts
+
+
+def _content(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple:
+    """Everything a track's bytes depend on."""
+    q = np.asarray(t.q, dtype=np.int64)
+    codes = [b"" if c is None else np.asarray(c, dtype=np.int64).tobytes() for c in (t.ref_codes, t.axis_codes)]
+    return (t.kind, t.split, float(t.step), float(t.angle_step), frame_count, group_shifts, q.shape,
+            q.tobytes(), np.asarray(t.frames, dtype=np.int64).tobytes(), *codes)
+
+
 def payload(frame_count: int, node_modes: list[tuple[int, int, int]], constants: list[float],
-            tracks: list[CurveTrack], group_shifts: tuple[int, ...] = GROUP_SHIFTS) -> bytes:
+            tracks: list[CurveTrack], group_shifts: tuple[int, ...] = GROUP_SHIFTS,
+            written: WrittenTracks | None = None) -> bytes:
     """The ``RMAL`` v2 payload of one clip: per node (rotation, translation, scale) modes (0
     rest, 1 constant, 2 animated), the f32 constants they use in node order, the animated
     tracks in node order (rotation, translation, scale); each track's keys grouped by the size
-    of ``2**group_shifts`` that takes the fewest bytes."""
+    of ``2**group_shifts`` that takes the fewest bytes. ``written``: the tracks of the
+    previous payload of this clip, reused where unchanged (the bytes are the same)."""
     if not group_shifts or any(not 1 <= g <= 6 for g in group_shifts):
         raise ValueError("group shifts must be 1 ... 6")
     nodes = len(node_modes)
     modes = bytes(rm | tm << 2 | sm << 4 for rm, tm, sm in node_modes)
     modes += bytes((-nodes) % 4)
-    parts = [_track_bytes(t, frame_count, tuple(group_shifts)) for t in tracks]
+    if written is None:
+        written = WrittenTracks()
+    parts = written.write(tracks, frame_count, tuple(group_shifts))
     descs = b"".join(p[0] for p in parts)
     head_len = PAYLOAD_HEADER + len(modes) + 4 * len(constants) + len(descs)
     body = b"".join(p[1] for p in parts)
