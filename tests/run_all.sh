@@ -7,7 +7,7 @@
 # The C objects and binaries are built first, in one make, so no two makes write into
 # runtime_c/build at once; the engine bindings wait for the platforms step, whose CMake
 # linux-x86_64 folder they build in. Each step's output is printed whole when it ends (two
-# steps' lines never interleave), then its verdict, wall time and the load average.
+# steps' lines never interleave), then its verdict, wall and CPU time and the load average.
 #   PYTEST_WORKERS=N   pytest-xdist workers (default 2; 0 runs pytest in one process)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,21 +22,33 @@ LOGS=$(mktemp -d)
 trap 'rm -rf "$LOGS"' EXIT
 ALL_START=$SECONDS
 
-# step TITLE COMMAND...: runs one step with its output kept, then prints it under the print lock.
+# cpu_of FILE: the CPU seconds (user + system) of a shell's finished children, from what `times`
+# wrote into FILE. `times` itself must run in the shell in question, not in a $(...) subshell.
+cpu_of() {
+  awk 'NR == 2 { for (i = 1; i <= 2; i++) { split($i, t, "m"); s += t[1] * 60 + t[2] } } END { printf "%.0f", s }' "$1"
+}
+
+# step TITLE COMMAND...: runs one step with its output kept, then prints it under the print lock
+# with its wall time and CPU time (the CPU time does not grow with other work on the machine).
 step() {
-  local title="$1" log start=$SECONDS rc=0 verdict
+  local title="$1" log start=$SECONDS cpu rc=0 verdict wall
   shift
   log=$(mktemp "$LOGS/step.XXXXXX")
+  times > "$log.times"
+  cpu=$(cpu_of "$log.times")
   echo "-- started: $title" >&2
   "$@" > "$log" 2>&1 || rc=$?
+  times > "$log.times"
+  cpu=$(( $(cpu_of "$log.times") - cpu ))
+  wall=$((SECONDS - start))
   if [ "$rc" = 0 ]; then verdict=passed; else verdict="FAILED (exit $rc)"; echo "$title" >> "$LOGS/failed"; fi
-  printf '%5d s  %s  %s\n' $((SECONDS - start)) "$verdict" "$title" >> "$LOGS/times"
+  printf '%5d s %5d s  %s  %s\n' "$wall" "$cpu" "$verdict" "$title" >> "$LOGS/times"
   {
     flock 9
     echo
     echo "== $title"
     cat "$log"
-    echo "== $verdict, $((SECONDS - start)) s (load average $(cut -d' ' -f1-3 /proc/loadavg)): $title"
+    echo "== $verdict, $wall s, CPU $cpu s (load average $(cut -d' ' -f1-3 /proc/loadavg)): $title"
   } 9> "$LOGS/print.lock"
 }
 
@@ -108,8 +120,9 @@ w2=$!
 wait "$w1" || echo "a test worker itself (exit $?)" >> "$LOGS/failed"
 wait "$w2" || echo "a test worker itself (exit $?)" >> "$LOGS/failed"
 
+times > "$LOGS/all.times"
 echo
-echo "== step times (wall, two at once), total $((SECONDS - ALL_START)) s"
+echo "== step times: wall, CPU (user + system), two steps at once; total wall $((SECONDS - ALL_START)) s, CPU $(cpu_of "$LOGS/all.times") s"
 cat "$LOGS/times"
 echo "steps: $(grep -c ' passed  ' "$LOGS/times") passed, $(grep -vc ' passed  ' "$LOGS/times") failed"
 if [ -s "$LOGS/failed" ]; then
