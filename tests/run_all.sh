@@ -21,6 +21,7 @@ apt_need "${need_apt[@]}" || exit 1
 LOGS=$(mktemp -d)
 trap 'rm -rf "$LOGS"' EXIT
 ALL_START=$SECONDS
+touch "$LOGS/times" "$LOGS/failed"
 
 # cpu_of FILE: the CPU seconds (user + system) of a shell's finished children, from what `times`
 # wrote into FILE. `times` itself must run in the shell in question, not in a $(...) subshell.
@@ -124,10 +125,13 @@ times > "$LOGS/all.times"
 echo
 echo "== step times: wall, CPU (user + system), two steps at once; total wall $((SECONDS - ALL_START)) s, CPU $(cpu_of "$LOGS/all.times") s"
 cat "$LOGS/times"
-echo "steps: $(grep -c ' passed  ' "$LOGS/times") passed, $(grep -vc ' passed  ' "$LOGS/times") failed"
+# The last line counts the steps, failures outside a step (a broken worker) among the failed.
+steps_line="steps: $(awk '/ passed  / { n++ } END { print n + 0 }' "$LOGS/times") passed, $(wc -l < "$LOGS/failed") failed"
 if [ -s "$LOGS/failed" ]; then
   echo "SOME TEST SUITES FAILED:"
   sed 's/^/  /' "$LOGS/failed"
+  echo "$steps_line"
   exit 1
 fi
 echo "all test suites passed"
+echo "$steps_line"
