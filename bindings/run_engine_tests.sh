@@ -24,8 +24,9 @@ if [ ${#missing[@]} -gt 0 ]; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
         echo "engines: installing ${missing[*]}"
         export DEBIAN_FRONTEND=noninteractive
-        (apt-get update -qq && apt-get install -y -qq --no-install-recommends "${missing[@]}") \
-            > "$MCD_BUILD/apt.log" 2>&1 || { echo "engines: apt-get install failed, see $MCD_BUILD/apt.log"; tail -n 20 "$MCD_BUILD/apt.log"; }
+        # The lock: tests/apt_need.sh.
+        flock /tmp/mocodec-apt.lock sh -c 'apt-get update -qq && apt-get install -y -qq --no-install-recommends "$@"' \
+            apt "${missing[@]}" > "$MCD_BUILD/apt.log" 2>&1 || { echo "engines: apt-get install failed, see $MCD_BUILD/apt.log"; tail -n 20 "$MCD_BUILD/apt.log"; }
     else
         echo "engines: missing ${missing[*]} and cannot install them (not root or no apt-get)"
     fi

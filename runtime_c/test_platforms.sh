@@ -62,8 +62,9 @@ if [ ${#need[@]} -gt 0 ]; then
     mapfile -t need < <(printf '%s\n' "${need[@]}" | sort -u)
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
         echo "platforms: installing ${need[*]} (apt)"
-        (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}") \
-            > "$LOGS/apt.log" 2>&1 || { echo "platforms: apt-get failed, see runtime_c/$LOGS/apt.log"; tail -n 5 "$LOGS/apt.log"; }
+        # The lock: tests/apt_need.sh.
+        flock /tmp/mocodec-apt.lock sh -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@"' \
+            apt "${need[@]}" > "$LOGS/apt.log" 2>&1 || { echo "platforms: apt-get failed, see runtime_c/$LOGS/apt.log"; tail -n 5 "$LOGS/apt.log"; }
     else
         echo "platforms: missing ${need[*]} and cannot install them (not root or no apt-get)"
     fi

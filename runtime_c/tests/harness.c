@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 
 #ifndef MCD_TEST_GOLDEN_DIR
 #define MCD_TEST_GOLDEN_DIR "../tests/golden/v2"
@@ -462,6 +463,7 @@ static int selected(const char* name, int argc, char** argv, int first) {
 int main(int argc, char** argv) {
     size_t i, n = sizeof k_tests / sizeof k_tests[0];
     int first = 1, passed = 0, failed = 0, skipped = 0, ran = 0;
+    clock_t start;
     while (first + 1 < argc && argv[first][0] == '-') {
         if (strcmp(argv[first], "--golden") == 0) g_golden_dir = argv[first + 1];
         else if (strcmp(argv[first], "--golden-v1") == 0) g_golden_v1_dir = argv[first + 1];
@@ -486,6 +488,7 @@ int main(int argc, char** argv) {
         g_notes[0] = 0;
         printf("%-28s ", k_tests[i].name);
         fflush(stdout);
+        start = clock();
         k_tests[i].fn();
         ran++;
         if (g_failures) {
@@ -499,7 +502,8 @@ int main(int argc, char** argv) {
             printf("FAILED (no checks ran)\n");
             failed++;
         } else {
-            printf("ok (%lu checks)\n", g_checks);
+            /* CPU time, not wall: where a slow run spends it, whatever else the machine runs. */
+            printf("ok (%lu checks, %.1f s CPU)\n", g_checks, (double)(clock() - start) / CLOCKS_PER_SEC);
             passed++;
         }
         fputs(g_notes, stdout);
