@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -46,6 +45,7 @@ def joined_motion(folder: Path, frames: int):
 
 
 def run_one(codec: str, folder: Path, frames: int, tolerance: float) -> dict:
+    from mocodec.cli import _peak_rss_kib
     from mocodec.encode import encode_motions
     from mocodec.tolerance import Tolerance
     from mocodec.units import resolve_units
@@ -60,7 +60,7 @@ def run_one(codec: str, folder: Path, frames: int, tolerance: float) -> dict:
         row.update(ok=True, asset_bytes=len(result.asset), max_cm=result.clips[0].error.max_cm)
     except Exception as exc:  # the reason is the figure
         row.update(ok=False, error=f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}")
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = _peak_rss_kib() * 1024  # this process's own peak (VmHWM)
     row.update(cpu_s=time.process_time() - cpu, wall_s=time.perf_counter() - wall, peak_bytes=peak,
                peak_over_raw=peak / raw)
     return row

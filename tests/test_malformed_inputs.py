@@ -13,8 +13,8 @@ from pathlib import Path
 from malformed_inputs import variants
 
 RUNNER = r"""
-import contextlib, io, json, resource, signal, sys, time
-from mocodec.cli import main
+import contextlib, io, json, signal, sys, time
+from mocodec.cli import main, _peak_rss_kib  # VmHWM: ru_maxrss would count the pytest worker forked from
 
 def alarm(signum, frame):
     raise TimeoutError("over 10 s of CPU time")
@@ -30,7 +30,7 @@ for path in sys.argv[1:]:
     except BaseException as exc:  # a hang (the alarm) or anything main() let through
         code = "raised " + type(exc).__name__ + ": " + str(exc)[:200]
     signal.setitimer(signal.ITIMER_PROF, 0.0)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = _peak_rss_kib() * 1024
     print(json.dumps({"path": path, "code": code, "stdout": out.getvalue(), "stderr": err.getvalue(),
                       "seconds": time.process_time() - start, "peak_bytes": peak}), flush=True)
 """
