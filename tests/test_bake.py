@@ -326,6 +326,68 @@ def test_progress_lines_without_a_terminal_and_nothing_when_off():
     assert quiet.getvalue() == "" and q._bar is None
 
 
+def _pid(_: object) -> int:
+    return os.getpid()
+
+
+def _env(name: str) -> str | None:
+    return os.environ.get(name)
+
+
+def _fails_on_two(x: int) -> int:
+    if x == 2:
+        raise ValueError("item 2")
+    return x
+
+
+@pytest.mark.parametrize("runner", [SerialRunner, lambda: ProcessRunner(2)], ids=["serial", "processes"])
+def test_map_keeps_the_order_and_raises_an_items_error(runner):
+    with runner() as r:
+        assert r.map(abs, [-3, 1, -2, 0]) == [3, 1, 2, 0]
+        assert r.map(abs, []) == []
+        with pytest.raises(ValueError, match="item 2"):
+            r.map(_fails_on_two, [0, 1, 2, 3])
+
+
+def test_process_map_runs_in_the_workers_with_one_blas_thread(monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
+    with ProcessRunner(2) as r:
+        pids = r.map(_pid, range(8))
+        threads = r.map(_env, ["OPENBLAS_NUM_THREADS"] * 4)
+    assert os.getpid() not in pids
+    assert threads == ["1"] * 4
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "7"  # this process's setting is given back
+
+
+class CountingRunner(ProcessRunner):
+    """A process runner that counts the items its ``map`` spread."""
+
+    def __init__(self, workers: int) -> None:
+        super().__init__(workers)
+        self.items = 0
+
+    def map(self, fn, items):
+        self.items += len(items)
+        return super().map(fn, items)
+
+
+@pytest.fixture(scope="module")
+def pca_serial(library) -> bytes:
+    pytest.importorskip("sklearn", reason="rma-pca needs the research extra (pip install 'mocodec[research]')")
+    motions, units = library
+    return encode_motions(motions, units, "rma-pca", Tolerance(TOL), options={"variance": 0.95}).asset
+
+
+def test_rma_pca_spreads_its_pieces_over_the_workers_with_the_serial_bytes(library, pca_serial):
+    motions, units = library
+    with CountingRunner(2) as runner:
+        asset = encode_motions(motions, units, "rma-pca", Tolerance(TOL), options={"variance": 0.95},
+                               runner=runner).asset
+    # the cut search and the root curves per clip, the coefficient curves per piece
+    assert runner.items >= 3 * len(motions)
+    assert asset == pca_serial
+
+
 # ----------------------------------------------------------------------------- Dask
 @pytest.fixture(scope="module")
 def dask_installed() -> None:
@@ -342,6 +404,13 @@ def cluster(dask_installed):
 
 def test_dask_gives_the_serial_bytes(library, serial_asset, cluster):
     assert _bake(library, make_runner(None, cluster.scheduler_address)) == serial_asset
+
+
+def test_dask_runs_rma_pca_to_the_serial_bytes(library, pca_serial, cluster):
+    motions, units = library
+    with make_runner(None, cluster.scheduler_address) as runner:
+        assert encode_motions(motions, units, "rma-pca", Tolerance(TOL), options={"variance": 0.95},
+                              runner=runner).asset == pca_serial
 
 
 def test_dask_bakes_a_streamed_library_to_the_same_bytes(sample_paths, files_asset, cluster):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import dataclasses
+import functools
 import multiprocessing
 import os
 import signal
@@ -103,6 +104,16 @@ class ClipOutcome:
     cached: bool = False
 
 
+def _same_encoder(fingerprint: str, fn: Callable[[Any], Any], item: Any) -> Any:
+    """``fn(item)`` on a Dask worker that runs the client's mocodec code (else the asset could
+    mix two encoders' output)."""
+    if fingerprint != encoder_fingerprint(binaries=False):
+        raise EncoderMismatch(f"a Dask worker runs other mocodec code than this client (fingerprint "
+                              f"{encoder_fingerprint(binaries=False)[:12]} vs {fingerprint[:12]}); install the "
+                              "same mocodec on the workers")
+    return fn(item)
+
+
 def run_job(job: ClipJob) -> ClipOutcome:
     """Encode one clip (in whichever process runs it)."""
     if job.fingerprint and job.fingerprint != encoder_fingerprint(binaries=False):
@@ -153,6 +164,13 @@ class Runner:
             assert o is not None
             o.payload = view  # type: ignore[assignment]
         return outcomes  # type: ignore[return-value]
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+        """``[fn(x) for x in items]``, spread over this runner's workers: for a codec whose clips
+        share a fit (rma-pca), the parts of its work that are per clip or per piece. ``fn`` is a
+        module-level function (it is pickled); an error of one item stops the others and is
+        raised."""
+        return [fn(x) for x in items]
 
     @staticmethod
     def _spooled(spool: PayloadSpool, i: int, outcome: ClipOutcome) -> ClipOutcome:
@@ -219,19 +237,30 @@ def _ignore_interrupt() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""What a worker process's numpy may run beside it: one thread (the workers fill the cores;
+a BLAS pool in each, spinning for a core, made rma-pca's bake 5x slower on two)."""
+
+
 @contextlib.contextmanager
-def _workers_ignore_interrupt() -> Iterator[None]:
-    """Ctrl-C ignored while worker processes are started (they are started on submit): a
-    process inherits it, so a Ctrl-C while a worker is still importing finds it ignoring
-    too (the initializer runs only after the imports)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _starting_workers() -> Iterator[None]:
+    """Around the submits that start worker processes: each starts with one BLAS thread, and
+    with Ctrl-C ignored (a process inherits it, so a Ctrl-C while a worker is still importing
+    finds it ignoring too: the initializer runs only after the imports)."""
+    saved = {name: os.environ.get(name) for name in BLAS_THREADS}
+    os.environ.update({name: "1" for name in BLAS_THREADS})
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if main:
+            signal.signal(signal.SIGINT, previous)
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 class ProcessRunner(Runner):
@@ -263,7 +292,7 @@ class ProcessRunner(Runner):
 
         def submit(job: ClipJob) -> cf.Future:
             if len(submitted) < self.workers:  # the pool starts a worker on each of these submits
-                with _workers_ignore_interrupt():
+                with _starting_workers():
                     f = pool.submit(run_job, job)
             else:
                 f = pool.submit(run_job, job)
@@ -283,6 +312,25 @@ class ProcessRunner(Runner):
                 yield i, outcome
         except BaseException:
             for f in submitted:
+                f.cancel()
+            self.close(kill=True)
+            raise
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+        if len(items) <= 1:
+            return super().map(fn, items)
+        pool = self._executor()
+        futures: list[cf.Future] = []
+        try:
+            with _starting_workers():  # the first submits start the workers
+                futures = [pool.submit(fn, x) for x in items]
+            return [f.result() for f in futures]
+        except cf.process.BrokenProcessPool:
+            self.close(kill=True)
+            raise BakeError("a worker process died (killed, or out of memory: try fewer --jobs); "
+                            "nothing was written") from None
+        except BaseException:
+            for f in futures:
                 f.cancel()
             self.close(kill=True)
             raise
@@ -316,17 +364,20 @@ class DaskRunner(Runner):
             raise BakeError(f"cannot reach the Dask scheduler at {address!r}: {reason}") from None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
+    def _wait_for_workers(self) -> None:
+        try:
+            self.client.wait_for_workers(1, timeout=WAIT_FOR_WORKERS_S)
+        except TimeoutError:
+            raise BakeError(f"the Dask scheduler at {self.address} has no workers (waited {WAIT_FOR_WORKERS_S:g} s): "
+                            f"start some with `dask worker {self.address}`") from None
+
     def _dispatch(self, to_encode: list[tuple[int, ClipJob]],
                   progress: ProgressFn | None = None) -> Iterator[tuple[int, ClipOutcome]]:
         if not to_encode:
             return
         from distributed import KilledWorker, as_completed
 
-        try:
-            self.client.wait_for_workers(1, timeout=WAIT_FOR_WORKERS_S)
-        except TimeoutError:
-            raise BakeError(f"the Dask scheduler at {self.address} has no workers (waited {WAIT_FOR_WORKERS_S:g} s): "
-                            f"start some with `dask worker {self.address}`") from None
+        self._wait_for_workers()
         fingerprint = encoder_fingerprint(binaries=False)
         workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         in_flight: set = set()
@@ -363,6 +414,26 @@ class DaskRunner(Runner):
                 yield i, outcome
         except BaseException:
             self.client.cancel(list(in_flight), force=True)
+            raise
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+        if not items:
+            return []
+        from distributed import KilledWorker
+
+        self._wait_for_workers()
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*[Ll]arge.*")  # the items are the work, by design
+            futures = self.client.map(functools.partial(_same_encoder, encoder_fingerprint(binaries=False), fn),
+                                      list(items), pure=False,
+                                      key=[f"mocodec-part-{os.urandom(8).hex()}" for _ in items])
+        try:
+            return self.client.gather(futures)
+        except KilledWorker:
+            raise BakeError("Dask workers died more often than the scheduler retries a task "
+                            "(distributed.scheduler.allowed-failures); nothing was written") from None
+        except BaseException:
+            self.client.cancel(futures, force=True)
             raise
 
     def close(self) -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import struct
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +39,9 @@ from ..rma import repeats as RP
 from ..rma import segment as S
 from ..tolerance import Tolerance
 from . import CheckFn, CodecOutput, ProgressFn, UnsupportedMotion
+
+if TYPE_CHECKING:
+    from ..bake import Runner
 from .rma import curve_track, frame0_jumps
 from .rma_bitstream import payload as rmal_payload
 from .rma_reference import decode_payload
@@ -161,15 +165,16 @@ def _long_enough(pieces: list[Piece], span: int) -> list[Piece]:
     return out
 
 
-def pieces_and_groups(flats: list[np.ndarray], groups: int | None, blend: int = 0) -> list[Piece]:
+def pieces_and_groups(flats: list[np.ndarray], groups: int | None, blend: int = 0,
+                      runner: "Runner | None" = None) -> list[Piece]:
     """Cut every clip into behaviour segments and group them (seed 003 §4.1); consecutive
     segments of one clip in the same group become one piece, and pieces are at least
-    ``2 blend + 1`` frames long."""
+    ``2 blend + 1`` frames long. Each clip's cuts are searched on ``runner``'s workers."""
     if groups == 1:
         labels = np.zeros(len(flats), dtype=np.int64)
         segs = [S.Segment(i, 0, len(x)) for i, x in enumerate(flats)]
     else:
-        segs = S.segment_library(flats)
+        segs = S.segment_library(flats, map_clips=runner.map if runner else None)
         blocks = [flats[s.clip][s.start:s.stop] for s in segs]
         feats = [S.segment_feature(b) for b in blocks]
         labels = S.group_segments(feats, n_groups=groups, cost=S.pca_group_cost(blocks))
@@ -457,10 +462,46 @@ def repetition_plan(pieces: list[Piece], flats: list[np.ndarray], bases: list[Gr
     return out
 
 
+# ------------------------------------------------------------------------ per-piece work
+# Module-level, one tuple argument each: a runner's workers receive them pickled.
+def _direct_set(work: tuple[np.ndarray, float, RmaPcaSettings, bool]) -> bytes:
+    """The curve set of a piece coded on its own."""
+    coef, budget, s, split = work
+    return coefficient_set(coef, budget, s, split=split)
+
+
+def _repeated_set(work: tuple) -> bytes:
+    """Eq. 6: a repeated piece as a reference curve into its primary's curve set (the primary's
+    frames, extended by one frame per frame past the interval) and the differences to the
+    primary as the runtime reconstructs it at the decoded reference."""
+    sp, coef, split, (lo, hi), (plo, phi), primary_set, k, budget, s = work
+    x = np.arange(lo, hi + 1, dtype=np.float64)
+    ref = np.interp(x, np.arange(sp.start, sp.start + len(sp.ref)), sp.ref - plo)
+    ref += np.where(x < sp.start, x - sp.start, 0.0) + np.where(x > sp.start + len(sp.ref) - 1,
+                                                                 x - (sp.start + len(sp.ref) - 1), 0.0)
+    ref = np.clip(ref, 0.0, phi - plo)
+    ref_track = _curve_track(ref, s.ref_frames, s.quant_fraction, s.key_grid, split)
+    at = np.clip(track_curve(ref_track), 0.0, phi - plo)
+    diff = coef - set_coefficients(primary_set, k, at)
+    return coefficient_set(diff, budget, s, first=[ref_track], split=split)
+
+
+def _root_set(work: tuple[PP.RootTrack, float, RmaPcaSettings, bool, int]) -> bytes:
+    """A clip's root curves as one curve set."""
+    root, cm, s, split, frames = work
+    rc, rb = root_curves(root, cm, s)
+    return curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid, split) for c, bud in zip(rc, rb)], frames)
+
+
 # ------------------------------------------------------------------------ entry point
 def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, check: CheckFn,
-           progress: ProgressFn | None = None) -> CodecOutput:
-    """Encode a library into one ``RMAP`` section (no tolerance promise: see the module)."""
+           progress: ProgressFn | None = None, runner: "Runner | None" = None) -> CodecOutput:
+    """Encode a library into one ``RMAP`` section (no tolerance promise: see the module). The
+    bases span every clip; the per-clip and per-piece work (behaviour cuts, coefficient and
+    root curves) runs on ``runner``'s workers (None: here), with the same bytes."""
+    from ..bake import SerialRunner
+
+    runner = runner or SerialRunner()
     started = time.perf_counter()
     if len(set(cm_per_unit)) != 1:
         raise ValueError("rma-pca codes one library in one unit: the clips' units differ")
@@ -480,7 +521,7 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
     flats = [p.flat for p in prepared]
     frame_times = {m.frame_time for m in motions}
     blend = s.blend_frames(min(frame_times))
-    pieces = pieces_and_groups(flats, s.groups, blend)
+    pieces = pieces_and_groups(flats, s.groups, blend, runner)
     n_groups = max(p.group for p in pieces) + 1
     bases = []
     for g in range(n_groups):
@@ -493,47 +534,34 @@ def encode(motions: list[Motion], cm_per_unit: list[float], s: RmaPcaSettings, c
     jumps = [frame0_jumps(m, cm) for m in motions]
     # Direct sub-pieces first (a repeated one needs its primary's coded curves), then the
     # repeated ones; the sets are laid out per clip afterwards.
-    sets: dict[int, bytes] = {}
     spans: dict[int, tuple[int, int]] = {}
+    for idx, sp in enumerate(plan):
+        mine = [j for j, q in enumerate(plan) if q.clip == sp.clip]
+        pos = mine.index(idx)
+        # Curves reach `blend` frames into each neighbour, where the runtime cross-fades.
+        spans[idx] = (sp.start - blend if pos else 0, sp.stop + blend if pos + 1 < len(mine) else sp.stop)
+
+    def piece(idx: int) -> tuple[SubPiece, np.ndarray, bool]:
+        sp, (lo, hi) = plan[idx], spans[idx]
+        return sp, project(bases[sp.group], flats[sp.clip][lo:hi + 1]), bool(jumps[sp.clip] and lo == 0)
+
     t0 = time.perf_counter()
-    for direct in (True, False):
-        for idx, sp in enumerate(plan):
-            if (sp.primary < 0) != direct:
-                continue
-            mine = [j for j, q in enumerate(plan) if q.clip == sp.clip]
-            pos = mine.index(idx)
-            # Curves reach `blend` frames into each neighbour, where the runtime cross-fades.
-            lo = sp.start - blend if pos else 0
-            hi = sp.stop + blend if pos + 1 < len(mine) else sp.stop
-            spans[idx] = (lo, hi)
-            split = jumps[sp.clip] and lo == 0
-            b = bases[sp.group]
-            coef = project(b, flats[sp.clip][lo:hi + 1])
-            if direct:
-                sets[idx] = coefficient_set(coef, budget, s, split=split)
-                continue
-            # Eq. 6: a reference curve into the primary's curve set (its frames, extended by one
-            # frame per frame past the interval) and the differences to the primary as the
-            # runtime reconstructs it at the decoded reference.
-            plo, phi = spans[sp.primary]
-            x = np.arange(lo, hi + 1, dtype=np.float64)
-            ref = np.interp(x, np.arange(sp.start, sp.start + len(sp.ref)), sp.ref - plo)
-            ref += np.where(x < sp.start, x - sp.start, 0.0) + np.where(x > sp.start + len(sp.ref) - 1,
-                                                                         x - (sp.start + len(sp.ref) - 1), 0.0)
-            ref = np.clip(ref, 0.0, phi - plo)
-            ref_track = _curve_track(ref, s.ref_frames, s.quant_fraction, s.key_grid, split)
-            at = np.clip(track_curve(ref_track), 0.0, phi - plo)
-            diff = coef - set_coefficients(sets[sp.primary], b.k, at)
-            sets[idx] = coefficient_set(diff, budget, s, first=[ref_track], split=split)
+    direct = [idx for idx, sp in enumerate(plan) if sp.primary < 0]
+    sets: dict[int, bytes] = dict(zip(direct, runner.map(_direct_set, [
+        (coef, budget, s, split) for _, coef, split in map(piece, direct)])))
+    repeated = [idx for idx, sp in enumerate(plan) if sp.primary >= 0]
+    sets.update(zip(repeated, runner.map(_repeated_set, [
+        (sp, coef, split, spans[idx], spans[sp.primary], sets[sp.primary], bases[sp.group].k, budget, s)
+        for idx, (sp, coef, split) in zip(repeated, map(piece, repeated))])))
     # A primary's curve set is shared (in the section's prefix): its own clip and every clip
     # that repeats it read it there. Every other set lies in its clip's payload.
     primaries = sorted({sp.primary for sp in plan if sp.primary >= 0})
     shared_index = {idx: i for i, idx in enumerate(primaries)}
     clip_payloads, stats = [], []
+    root_sets = runner.map(_root_set, [(pr.root, cm, s, jumps[ci], m.frame_count)
+                                       for ci, (m, pr) in enumerate(zip(motions, prepared))])
     for ci, (m, pr) in enumerate(zip(motions, prepared)):
-        rc, rb = root_curves(pr.root, cm, s)
-        own = [curve_set([_curve_track(c, bud, s.quant_fraction, s.key_grid, jumps[ci]) for c, bud in zip(rc, rb)],
-                         m.frame_count)]
+        own = [root_sets[ci]]
         mine = [j for j, q in enumerate(plan) if q.clip == ci]
         at = CLIP_HEADER + PIECE_RECORD * len(mine) + len(own[0])
         rows = []

@@ -13,6 +13,7 @@ clustering on a precomputed affinity); clip boundaries are always cuts.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -145,11 +146,16 @@ def ppca_cuts(x: np.ndarray, settings: PPCASettings = PPCASettings()) -> list[in
     return [c for c in cuts if settings.min_gap // 2 <= c <= frames - settings.min_gap // 2]
 
 
-def segment_library(clips: list[np.ndarray], settings: PPCASettings = PPCASettings()) -> list[Segment]:
-    """Segments of every clip (clip boundaries are cuts)."""
+def segment_library(clips: list[np.ndarray], settings: PPCASettings = PPCASettings(),
+                    map_clips: Callable[[Callable[[np.ndarray], list[int]], list[np.ndarray]], list[list[int]]] | None = None
+                    ) -> list[Segment]:
+    """Segments of every clip (clip boundaries are cuts). ``map_clips(fn, clips)`` runs the
+    per-clip cut search (a runner's ``map``: the clips' cuts are independent); None: in turn."""
+    cut = functools.partial(ppca_cuts, settings=settings)
+    cuts = map_clips(cut, clips) if map_clips else [cut(x) for x in clips]
     out = []
-    for ci, x in enumerate(clips):
-        bounds = [0] + ppca_cuts(x, settings) + [len(x)]
+    for ci, (x, inner) in enumerate(zip(clips, cuts)):
+        bounds = [0] + inner + [len(x)]
         out.extend(Segment(ci, a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a)
     return out
 
