@@ -99,6 +99,15 @@ def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+def _autogroup() -> str:
+    """Linux's per-session scheduling groups: while on, other sessions' work gets its share of
+    the cores however `nice` it is, so a worker speed-up is measured against it."""
+    try:
+        return {"0": "off", "1": "on"}.get(Path("/proc/sys/kernel/sched_autogroup_enabled").read_text().strip(), "?")
+    except OSError:
+        return "n/a"
+
+
 # ----------------------------------------------------------------------------- codecs
 def part_codecs(paths: list[Path], codecs: list[str], tolerance: float, clips: int) -> list[dict]:
     """MB/s per core of each codec on ``clips`` of the dev clips."""
@@ -316,9 +325,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no BVH clips in {args.data}", file=sys.stderr)
         return 1
     print(f"mocodec bake bench {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, "
-          f"load {_load()} at the start", flush=True)
+          f"load {_load()} at the start, autogroup {_autogroup()}", flush=True)
     report: dict = {"date": time.strftime("%Y-%m-%dT%H:%MZ", time.gmtime()), "cores": os.cpu_count(),
-                    "tolerance_cm": args.tolerance, "args": vars(args) | {"data": str(args.data), "json": str(args.json)}}
+                    "autogroup": _autogroup(), "tolerance_cm": args.tolerance, "args": vars(args) | {"data": str(args.data), "json": str(args.json)}}
     if "codecs" in args.parts:
         report["codecs"] = part_codecs(paths, args.codecs, args.tolerance, args.codec_clips)
     if "speedup" in args.parts or "incremental" in args.parts:
