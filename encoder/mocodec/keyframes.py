@@ -705,10 +705,12 @@ class HalfwayHold:
         to frames), and at most :attr:`factor` times its frame budgets. A track without
         half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
         changed: list[int] = []
+        over = self.held(half_errors) > self.tolerance[None, :]
+        if not over.any():
+            return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across
-            over = np.any((self.held(half_errors) > self.tolerance[None, :]) & reach.affects[k][None, :], axis=1)
-            if over.any():
-                at = np.flatnonzero(over)
+            at = np.flatnonzero(np.any(over[:, reach.affects[k]], axis=1))
+            if len(at):
                 self.released[at[_parameter_flips(t, at)]] = True
         errors = self.held(half_errors)
         ratio = self.tolerance[None, :] / np.maximum(errors, 1e-30)
