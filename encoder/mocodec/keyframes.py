@@ -710,8 +710,9 @@ class HalfwayHold:
             return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across
             at = np.flatnonzero(np.any(over[:, reach.affects[k]], axis=1))
-            if len(at):
-                self.released[at[_parameter_flips(t, at)]] = True
+            if len(at):  # and their neighbours: a curve's tangent there spans the jump
+                flips = at[_parameter_flips(t, at)]
+                self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
         errors = self.held(half_errors)
         ratio = self.tolerance[None, :] / np.maximum(errors, 1e-30)
         failing = ratio < 1.0
