@@ -650,11 +650,12 @@ class HalfwayHold:
     half-way budget).
 
     The frames are the promise; half-way is held as far as repairs reach. An interval a
-    track's parameters jump across (:func:`_parameter_flips`) is released at once, and one
-    still over after :attr:`RELEASE_AFTER` repairs too: no longer measured (counted in
-    :attr:`released`) rather than failing the clip, since there no curve through the frames'
-    targets follows the original's half-way path (keys on every frame already, or a track's
-    parameters jumping where its rotation does not, as a thumb turning round in CMU 06_13).
+    track's parameters jump across (:func:`_parameter_flips`) is released at once with its
+    neighbours, and one still over after :attr:`RELEASE_AFTER` repairs too: no longer
+    measured (counted in :attr:`released`) rather than failing the clip, since there no curve
+    through the frames' targets follows the original's half-way path (keys on every frame
+    already, or a track's parameters jumping where its rotation does not, as a thumb turning
+    round in CMU 06_13).
     After :attr:`HOLD_ROUNDS` checks an interval over is released at once, so that the
     frames' repairs converge as they do without the hold (the tracks' half-way budgets stay)."""
 
