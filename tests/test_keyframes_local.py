@@ -63,7 +63,7 @@ def test_a_refit_after_a_local_change_keeps_the_curve_elsewhere(motion):
     track.budget = np.full(frames, 0.01)
     mandatory = np.array([0, frames - 1])
     fit_track(track, mandatory, 0.6, StepQuantizer.for_range)
-    track.fitted = (track.values, track.budget.copy())
+    track.fitted = (track.values, track.budget.copy(), None)
     curve = _track_recon(track).copy()
     assert np.array_equal(untouched_keys(track), track.keys)  # nothing changed: every key stays
     bumped = values.copy()

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import halfway_world, motion_world
+from .kinematics import halfway_positions, motion_world
 from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -91,7 +91,7 @@ class RuntimeCheck:
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
         if halfway:  # the runtime at x + 1/2 against the original's own half-way pose
             if i not in self._halfway:
-                self._halfway[i] = halfway_world(self.motions[i])[0]
+                self._halfway[i] = halfway_positions(self.motions[i])
             ref = self._halfway[i]
             _, pos = asset.sample_frames(0, np.arange(len(ref), dtype=np.float64) + 0.5, world=True)
             return np.linalg.norm(pos - ref, axis=-1)
@@ -130,7 +130,7 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`); with ``halfway=True``
     the error half-way between frames (F - 1, N) instead, sampled by the runtime at x + 1/2
-    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_world`)."""
+    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_positions`)."""
     return RuntimeCheck(motions, cm_per_unit, codec)
 
 

@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import forward_kinematics, halfway_world, held_intervals, node_major
+from .kinematics import forward_kinematics, held_intervals, interval_motion, node_major
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -57,13 +57,13 @@ class KeyframeSettings:
         Rounds of check-through-the-runtime and budget tightening before giving up.
     shell_cm : float, default 3.0
         Every rotation is also held to a virtual vertex this far from its joint.
-    halfway_factor : float, default 0
+    halfway_factor : float, default 1.5
         Hold the error half-way between frames too, to this multiple of the tolerance (0:
-        off, frames only): each track's curve is fitted to its target's own half-way path
-        (slerp, lerp) as well, and the runtime's samples at x + 1/2 are checked against the
-        original's half-way pose and repaired like frames (:class:`HalfwayHold`). Intervals
-        where the capture jumps, and their neighbours
-        (:func:`mocodec.kinematics.held_intervals`), are not held.
+        off, frames only): the runtime's samples at x + 1/2 are checked against the
+        original's half-way pose with the frames, and where one is over, the tracks on its
+        chain are held to their targets' own half-way path (slerp, lerp) on that interval
+        and refitted there (:class:`HalfwayHold`). Intervals where the capture jumps, and
+        their neighbours (:func:`mocodec.kinematics.held_intervals`), are not held.
     """
 
     tolerance: Tolerance
@@ -71,7 +71,7 @@ class KeyframeSettings:
     budget_scales: tuple[float, ...] = (6.0,)
     max_repairs: int = 60
     shell_cm: float = 3.0
-    halfway_factor: float = 0.0
+    halfway_factor: float = 1.5
 
     def __post_init__(self) -> None:
         self.quant_fraction = float(self.quant_fraction)
@@ -110,8 +110,8 @@ class Track:
     constant: np.ndarray | None = None
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
-    half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (inf: not held)
-    fitted: tuple[np.ndarray, np.ndarray] | None = None  # (values, budget) its keys were last fitted to (local refits)
+    half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (None, inf: not held)
+    fitted: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None  # (values, budget, half_budget) its keys were last fitted to (local refits)
 
     @property
     def is_rotation(self) -> bool:
@@ -238,14 +238,20 @@ def halfway_target(track: Track) -> np.ndarray:
 
 def untouched_keys(track: Track) -> np.ndarray | None:
     """The keys of a fitted track whose curve segments (keys i - 2 ... i + 2) see no frame
-    whose value or budget changed since the fit (None when it was not fitted, or is held
-    half-way): a local refit keeps them, so that the curve changes only where it has to."""
-    if track.fitted is None or track.keys is None or track.half_budget is not None:
+    whose value or budget changed since the fit, nor a half-way sample next to one whose
+    half-way budget did (None when it was not fitted): a local refit keeps them, so that the
+    curve changes only where it has to."""
+    if track.fitted is None or track.keys is None:
         return None
-    values, budget = track.fitted
+    values, budget, half = track.fitted
     if values.shape != track.values.shape:
         return None
     dirty = (budget != track.budget) | np.any(values != track.values, axis=1)
+    if half is not None or track.half_budget is not None:
+        now = track.half_budget if track.half_budget is not None else np.full(len(dirty) - 1, np.inf)
+        moved = (half if half is not None else np.full(len(dirty) - 1, np.inf)) != now
+        dirty[:-1] |= moved
+        dirty[1:] |= moved
     keys = np.asarray(track.keys, dtype=np.int64)
     seen = np.concatenate(([0], np.cumsum(dirty)))
     idx = np.arange(len(keys))
@@ -498,7 +504,8 @@ class KeyframeFitter:
         keep = untouched_keys(track) if self.local_refits else None
         fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
         if self.local_refits:
-            track.fitted = (track.values, track.budget.copy())
+            track.fitted = (track.values, track.budget.copy(),
+                            None if track.half_budget is None else track.half_budget.copy())
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -569,7 +576,8 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         budgets0 = initial_budgets(comp.reach, self.tol_units, scale)
-        half = (HalfwayHold(self.motion, self.cm_per_unit, self.settings.halfway_factor, self.tol_units)
+        half = (HalfwayHold(self.motion, comp.pos_w, self.cm_per_unit, self.settings.halfway_factor,
+                            self.tol_units)
                 if self.settings.halfway_factor > 0.0 and self.frames > 1 else None)
         tracks: dict[tuple[int, int], Track] = {}
         order = []
@@ -593,8 +601,6 @@ class KeyframeFitter:
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
             t.budget = np.full(self.frames, float(b))
-            if half is not None:
-                t.half_budget = np.where(half.smooth, half.factor * float(b), np.inf)
             t.split = self.split
             tracks[(i, part)] = t
             order.append((i, part))
@@ -609,8 +615,7 @@ class KeyframeFitter:
         def repair(errors: np.ndarray) -> None:
             changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
             if half is not None:
-                changed |= set(tighten([tracks[k].half_budget for k in order], reach,
-                                       half.held(errors[frames:]), half.tolerance))
+                changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
             self._fit_pass(tracks, {order[c] for c in changed})
 
         tolerance = self.tol_units if half is None else half.stacked(self.tol_units)
@@ -624,27 +629,42 @@ class KeyframeFitter:
         stats = {"keys": keys, "tracks": len(tracks), "repairs": attempt.adjustments, "budget_scale": scale}
         if half is not None:
             stats["halfway_released"] = int(half.released.sum())
+            repaired = np.zeros(frames - 1, dtype=bool)
+            for t in tracks.values():
+                if t.half_budget is not None:
+                    repaired |= np.isfinite(t.half_budget)
+            stats["halfway_repaired"] = int(repaired.sum())
         return ClipResult(attempt.payload, attempt.errors_units[:frames], stats)
 
 
 class HalfwayHold:
     """The tolerance half-way between frames (:attr:`KeyframeSettings.halfway_factor`): which
     intervals are held (the capture moves smoothly through them), the tolerance there per
-    node, and the clip check extended to the runtime's samples at x + 1/2.
+    node, the clip check extended to the runtime's samples at x + 1/2, and the repair there.
 
-    The frames are the promise; half-way is held as far as repairs reach. An interval still
-    over after :attr:`RELEASE_AFTER` repairs is released (no longer measured, counted in
-    :attr:`released`) rather than failing the clip: there the curve through the frames'
-    targets does not follow the original's own half-way path (finger markers jittering 30
-    degrees in a frame, CMU 06_13), and tightening its budgets only moves the error. After
-    :attr:`HOLD_ROUNDS` checks an interval over is released at once, so that the frames'
-    repairs converge as they do without the hold (the tracks' own half-way budgets stay)."""
+    Tracks start with no half-way budgets, so the fit is the frames' own; only where the
+    runtime's half-way sample of a point is over do the tracks on its chain get a half-way
+    budget, on that interval and its neighbours (:meth:`tighten`), and are refitted there (a
+    local refit keeps their other keys), so the hold costs little fitting where the frames'
+    curves already keep to it half-way (stats ``halfway_repaired``: the intervals given a
+    half-way budget).
 
-    RELEASE_AFTER = 2
-    HOLD_ROUNDS = 10
+    The frames are the promise; half-way is held as far as repairs reach. An interval a
+    track's parameters jump across (:func:`_parameter_flips`) is released at once with its
+    neighbours, and one still over after :attr:`RELEASE_AFTER` repairs too: no longer
+    measured (counted in :attr:`released`) rather than failing the clip, since there no curve
+    through the frames' targets follows the original's half-way path (keys on every frame
+    already, or a track's parameters jumping where its rotation does not, as a thumb turning
+    round in CMU 06_13).
+    After :attr:`HOLD_ROUNDS` checks an interval over is released at once, so that the
+    frames' repairs converge as they do without the hold (the tracks' half-way budgets stay)."""
 
-    def __init__(self, motion: Motion, cm_per_unit: float, factor: float, tol_units: np.ndarray) -> None:
-        _, step, turn = halfway_world(motion)
+    RELEASE_AFTER = 1
+    HOLD_ROUNDS = 20
+
+    def __init__(self, motion: Motion, world: np.ndarray, cm_per_unit: float, factor: float,
+                 tol_units: np.ndarray) -> None:
+        step, turn = interval_motion(motion, world)
         self.smooth = held_intervals(step, turn, cm_per_unit)
         self.factor = factor
         self.tolerance = factor * tol_units
@@ -676,6 +696,75 @@ class HalfwayHold:
                 self.released |= over
             return np.concatenate((check(payload), self.held(half)))
         return both
+
+    def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
+                factor: float = 0.7) -> list[int]:
+        """Hold the tracks on the chains of the held half-way samples over the tolerance
+        (``half_errors`` (F-1, N), file units): on each failing interval and its held
+        neighbours a track's half-way budget becomes at most its own curve's error there now
+        times ``min(factor, 0.95 * tolerance / error)`` (what :func:`tolerance.tighten` does
+        to frames), and at most :attr:`factor` times its frame budgets. A track without
+        half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
+        changed: list[int] = []
+        over = self.held(half_errors) > self.tolerance[None, :]
+        if not over.any():
+            return changed
+        for k, t in enumerate(tracks):  # first release what a track's parameters jump across
+            at = np.flatnonzero(np.any(over[:, reach.affects[k]], axis=1))
+            if len(at):  # and their neighbours: a curve's tangent there spans the jump
+                flips = at[_parameter_flips(t, at)]
+                self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
+        errors = self.held(half_errors)
+        ratio = self.tolerance[None, :] / np.maximum(errors, 1e-30)
+        failing = ratio < 1.0
+        if not failing.any():
+            return changed
+        for k, t in enumerate(tracks):
+            mask = failing & reach.affects[k][None, :]
+            rows = mask.any(axis=1)
+            if not rows.any():
+                continue
+            worst = np.where(mask, ratio, np.inf).min(axis=1)
+            mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
+            spread = mult.copy()
+            spread[1:] = np.minimum(spread[1:], mult[:-1])
+            spread[:-1] = np.minimum(spread[:-1], mult[1:])
+            at = np.flatnonzero((spread < 1.0) & self.smooth)
+            cap = self.factor * np.minimum(t.budget[at], t.budget[at + 1])
+            wanted = np.minimum(cap, _half_errors(t, at) * spread[at])
+            if t.half_budget is None:
+                t.half_budget = np.full(len(self.smooth), np.inf)
+            if np.any(wanted < t.half_budget[at]):
+                t.half_budget[at] = np.minimum(t.half_budget[at], wanted)
+                changed.append(k)
+        return changed
+
+
+def _parameter_flips(track: Track, at: np.ndarray) -> np.ndarray:
+    """Which intervals ``at`` a rotation track's parameters jump across while its rotation
+    turns little (F-1 bool over ``at``): the mean of the two frames' parameters decodes
+    further from the slerp half-way than half the interval's own turn (a swing crossing 180
+    degrees, where the twist angle is undefined; a thumb turning round in CMU 06_13). Keys on
+    both frames do not help there, so the hold does not try."""
+    if track.kind in VECTOR_KINDS or not len(at):
+        return np.zeros(len(at), dtype=bool)
+    mid = _track_error(track).decoded(0.5 * (track.values[at] + track.values[at + 1]))
+    off = R.quat_angle(halfway_target(track)[at], mid)
+    return off > 0.5 * R.quat_angle(track.target[at], track.target[at + 1]) + 1e-9
+
+
+def _half_errors(track: Track, at: np.ndarray) -> np.ndarray:
+    """A fitted track's own error half-way between frames ``at`` and ``at + 1`` (against
+    :func:`halfway_target`): angle for rotations, distance for translations and scales."""
+    target = halfway_target(track)[at]
+    if track.keys is None:
+        recon = np.broadcast_to(track.constant, target.shape)
+    else:
+        values = catmull_rom(track.keys, track.quantizer.roundtrip(track.key_values), at + 0.5, track.split)
+        recon = values if track.kind in VECTOR_KINDS else _track_error(track).decoded(values)
+    if track.kind in VECTOR_KINDS:
+        return np.linalg.norm(recon - target, axis=1)
+    return R.quat_angle(target, recon)
 
 
 def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, check: ClipCheck,

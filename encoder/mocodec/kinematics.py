@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .motion import Motion, Skeleton
-from .rotations import quat_angle, quat_multiply, quat_rotate
+from .rotations import quat_multiply, quat_rotate
 
 
 def forward_kinematics(
@@ -98,22 +98,43 @@ def lever_arms(skeleton: Skeleton, positions: np.ndarray) -> np.ndarray:
 def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The original half-way between consecutive frames, where engines also sample.
 
-    Returns world positions ``(F-1, N, 3)`` (local rotations by slerp at one half, which is the
-    normalised sum of the two quaternions on the same hemisphere; translations averaged), and
-    per interval the largest point step between its two frames ``(F-1,)`` in file units and
-    the largest local joint turn ``(F-1,)`` in degrees: large ones mark capture glitches, where
-    no half-way pose was recorded.
+    Returns world positions ``(F-1, N, 3)`` (:func:`halfway_positions`), and per interval the
+    largest point step between its two frames ``(F-1,)`` in file units and the largest local
+    joint turn ``(F-1,)`` in degrees (:func:`interval_motion`): large ones mark capture
+    glitches, where no half-way pose was recorded.
     """
-    world = world_positions(motion)
-    step = np.max(np.linalg.norm(world[1:] - world[:-1], axis=-1), axis=1)
+    return (halfway_positions(motion), *interval_motion(motion, world_positions(motion)))
+
+
+def halfway_positions(motion: Motion) -> np.ndarray:
+    """World positions ``(F-1, N, 3)`` of the original half-way between consecutive frames:
+    local rotations by slerp at one half (the normalised sum of the two quaternions on one
+    hemisphere), translations and scales averaged, then forward kinematics."""
     q0, q1 = motion.rotations[:-1], motion.rotations[1:]
     dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    turn = np.degrees(quat_angle(q0, q1)).max(axis=1)
     rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
     rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
     trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])
     scale = 0.5 * (motion.scales[:-1] + motion.scales[1:])
-    return forward_kinematics(motion.skeleton, rot, trans, scale)[1], step, turn
+    return forward_kinematics(motion.skeleton, rot, trans, scale)[1]
+
+
+def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per interval between frames, the largest point step ``(F-1,)`` (file units) of the
+    world positions ``world`` (F, N, 3) and the largest local joint turn ``(F-1,)`` (degrees)."""
+    step, turn = interval_motion_per_node(motion, world)
+    return step.max(axis=1), turn.max(axis=1)
+
+
+def interval_motion_per_node(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`interval_motion` per node: every point's step ``(F-1, N)`` and every node's
+    local turn ``(F-1, N)`` between consecutive frames."""
+    step = np.linalg.norm(world[1:] - world[:-1], axis=-1)
+    # The angle from the dot product: imprecise near 0 degrees, exact enough at the glitch
+    # thresholds (6e-13 degrees from quat_angle over 10 degrees on CMU 01_03), a tenth of its time.
+    dot = np.abs(np.einsum("fnk,fnk->fn", motion.rotations[:-1], motion.rotations[1:]))
+    turn = np.degrees(2.0 * np.arccos(np.minimum(dot, 1.0)))
+    return step, turn
 
 
 GLITCH_STEP_CM = 10.0   # a point faster than 12 m/s between two 120 fps frames: a capture glitch

@@ -130,10 +130,21 @@ static double errors_at(const keyset* s, int64_t f, double* half) {
     return sample_error(c, v, c->target + f * td);
 }
 
-/* Errors of frames lo ... hi, and of the half-way samples lo ... hi - 1 when herr is not NULL. */
+/* Whether half-way sample f is held: a finite budget (most are infinite where the hold is
+ * lazy, and are not evaluated at all). */
+static int half_held(const mcf_curve* c, int64_t f) {
+    return c->half_target && !isinf(c->half_budget[f]);
+}
+
+/* Errors of frames lo ... hi, and of the half-way samples lo ... hi - 1 when herr is not NULL
+ * (0 where not held). */
 static void evaluate_range(const keyset* s, int64_t lo, int64_t hi, double* err, double* herr) {
     int64_t f;
-    for (f = lo; f <= hi; ++f) err[f] = errors_at(s, f, herr && f < hi ? herr + f : NULL);
+    for (f = lo; f <= hi; ++f) {
+        const int with_half = herr && f < hi && half_held(s->c, f);
+        if (herr && f < hi && !with_half) herr[f] = 0.0;
+        err[f] = errors_at(s, f, with_half ? herr + f : NULL);
+    }
 }
 
 /* True when some frame lo ... hi or half-way sample lo ... hi - 1 is over budget. */
@@ -142,7 +153,7 @@ static int region_fails(const keyset* s, int64_t lo, int64_t hi) {
     int64_t f;
     for (f = lo; f <= hi; ++f) {
         double half = 0.0;
-        const int with_half = c->half_target && f < hi;
+        const int with_half = f < hi && half_held(c, f);
         if (errors_at(s, f, with_half ? &half : NULL) > c->budget[f]) return 1;
         if (with_half && half > c->half_budget[f]) return 1;
     }
