@@ -501,6 +501,8 @@ class KeyframeFitter:
         self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
         self.mandatory = self.mandatory_keys()
         self._fits = 0
+        self._has_children = np.zeros(motion.skeleton.node_count, dtype=bool)
+        self._has_children[motion.skeleton.parents[motion.skeleton.parents >= 0]] = True
         self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
 
     # -------------------------------------------------------------- passes
@@ -560,7 +562,9 @@ class KeyframeFitter:
                 elif key in refit or parent_moved or t.target is None:
                     _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
                     self._fit(t)
-            if same_parent and self._fits == fits:
+            if not self._has_children[i]:  # no node reads a leaf's decoded rotation
+                rot_d[i] = _UNREAD
+            elif same_parent and self._fits == fits:
                 rot_d[i] = prev[0][i]
             else:
                 # A rotation track's decoded rotations are not kept on it (F x 4 numbers a track):
@@ -577,7 +581,7 @@ class KeyframeFitter:
                 scale_d[i] = local_s if p < 0 else _product(scale_d[p], local_s)
             moved[i] = prev is None or not (_same(prev[0][i], rot_d[i]) and _same(prev[1][i], pos_d[i])
                                             and _same(prev[2][i], scale_d[i]))
-            if self.local_refits and prev is not None and moved[i]:
+            if self.local_refits and prev is not None and moved[i] and self._has_children[i]:
                 rot_moved[:, i] = np.any(prev[0][i] != rot_d[i], axis=1)
             if prev is not None:  # nothing after this node reads its previous pose
                 prev[0][i] = prev[1][i] = prev[2][i] = np.empty(0)
@@ -796,6 +800,9 @@ def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     if keep:
         track.recon = recon
     return recon
+
+
+_UNREAD = np.empty((0, 4))  # the decoded rotation of a leaf, which no pass reads
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
