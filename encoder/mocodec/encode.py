@@ -143,7 +143,7 @@ def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsCh
     for m, u, name in zip(motions, units, names):
         frames = np.arange(m.frame_count)
 
-        def chunks(m: Motion = m, name: str = name) -> Iterator[Chunk]:
+        def chunks(m: Motion = m, name: str = name, frames: np.ndarray = frames) -> Iterator[Chunk]:
             # A run of frames at a time (forward kinematics is frame by frame: the same numbers).
             world = sample_chunks(a, name, frames, world=True, contacts=contacts)
             local = sample_chunks(a, name, frames, world=False, contacts=contacts)

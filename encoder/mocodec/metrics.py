@@ -9,14 +9,14 @@ measures how far they move. Sizes follow DESIGN.md's two conventions.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterable, Optional, Tuple
+from typing import Iterable
 
 import numpy as np
 
 from .motion import Motion, Skeleton
 from .rotations import quat_angle, rotate_axis
 
-Chunk = Tuple[Tuple[np.ndarray, np.ndarray], Tuple[np.ndarray, np.ndarray], Optional[np.ndarray], Optional[np.ndarray]]
+Chunk = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray | None, np.ndarray | None]
 """Frames of one clip for :meth:`ErrorMetric.evaluate_chunks`: original and decoded world
 (rotations, positions), original and decoded local rotations (None: no angle error)."""
 
