@@ -7,8 +7,8 @@ at most 4x), the asset's bytes and the error through the C runtime, or the reaso
     python bench/long_clip.py --minutes 120 --codecs rma   # the 2-hour case
 
 Each codec runs in its own process; its peak memory includes the interpreter and libraries
-(about 100 MB) and the dev clips' channels the motion is built from (about 55 MB), so short
-runs overstate the ratio. Run one at a time on a
+(about 40 MB) and the dev clips' channels the motion is built from (38 MB), so short runs
+overstate the ratio. Run one at a time on a
 shared machine; the times are not a speed benchmark (no lock, no repeats).
 """
 from __future__ import annotations
