@@ -6,8 +6,9 @@ at most 4x), the asset's bytes and the error through the C runtime, or the reaso
     python bench/long_clip.py                              # 20 minutes, rma and spline
     python bench/long_clip.py --minutes 120 --codecs rma   # the 2-hour case
 
-Each codec runs in its own process; its peak memory includes the dev clips read to build the
-motion (about 240 MB), so short runs overstate the ratio. Run one at a time on a
+Each codec runs in its own process; its peak memory includes the interpreter and libraries
+(about 40 MB) and the dev clips' channels the motion is built from (38 MB), so short runs
+overstate the ratio. Run one at a time on a
 shared machine; the times are not a speed benchmark (no lock, no repeats).
 """
 from __future__ import annotations
@@ -31,16 +32,20 @@ def joined_motion(folder: Path, frames: int):
     from mocodec.io import read_bvh
     from mocodec.motion import Motion
 
-    clips = [read_bvh(p) for p in sorted(folder.glob("*.bvh"))]
-    if not clips:
+    paths = sorted(folder.glob("*.bvh"))
+    if not paths:
         raise SystemExit(f"{folder}: no BVH clips (the dev set is ../shared/data/cmu)")
+    first = read_bvh(paths[0])
+    # Only each clip's channels are kept (not its motion), so the peak is the encode's own.
+    sources = [first.source_channels] + [read_bvh(p).source_channels for p in paths[1:]]
     channels, count, k = [], 0, 0
     while count < frames:
-        part = clips[k % len(clips)].source_channels[: frames - count]
+        part = sources[k % len(sources)][: frames - count]
         channels.append(part)
         count += len(part)
         k += 1
-    return Motion.from_channels(clips[0].skeleton, np.concatenate(channels), clips[0].frame_time,
+    del sources
+    return Motion.from_channels(first.skeleton, np.concatenate(channels), first.frame_time,
                                 f"joined_{frames}")
 
 

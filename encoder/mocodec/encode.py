@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import halfway_positions, motion_world
-from .metrics import ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
+from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
@@ -86,19 +86,16 @@ class RuntimeCheck:
         self._halfway: dict[int, np.ndarray] = {}  # computed when a codec first asks
 
     def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
-        from .runtime import Asset, decode_world
+        from .runtime import Asset, world_error
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
         if halfway:  # the runtime at x + 1/2 against the original's own half-way pose
             if i not in self._halfway:
                 self._halfway[i] = halfway_positions(self.motions[i])
-            ref = self._halfway[i]
-            _, pos = asset.sample_frames(0, np.arange(len(ref), dtype=np.float64) + 0.5, world=True)
-            return np.linalg.norm(pos - ref, axis=-1)
+            return world_error(asset, 0, self._halfway[i], 0.5)
         if i not in self._originals:
-            self._originals[i] = motion_world(self.motions[i])[1]
-        _, pos = decode_world(asset, 0)
-        return np.linalg.norm(pos - self._originals[i], axis=-1)
+            self._originals[i] = motion_world(self.motions[i], shared=True)[1]  # the fitter's own, if it holds it
+        return world_error(asset, 0, self._originals[i])
 
     def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":
         """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
@@ -138,17 +135,23 @@ def evaluate(asset: "bytes | Asset", motions: list[Motion], units: "list[UnitsCh
              clip_names: list[str] | None = None, contacts: bool = False) -> list[ErrorReport]:
     """Decode each clip of ``asset`` through the runtime and compare with ``motions``
     (``contacts``: with the contact trajectories applied, as an engine samples them)."""
-    from .runtime import Asset
+    from .runtime import Asset, sample_chunks
 
     a = asset if isinstance(asset, Asset) else Asset(asset)
     names = clip_names or [m.name for m in motions]
     reports = []
     for m, u, name in zip(motions, units, names):
-        rot_o, pos_o = motion_world(m)
-        rot_d, pos_d = a.sample_frames(name, world=True, contacts=contacts)
-        local_d, _ = a.sample_frames(name, world=False, contacts=contacts)
+        frames = np.arange(m.frame_count)
+
+        def chunks(m: Motion = m, name: str = name, frames: np.ndarray = frames) -> Iterator[Chunk]:
+            # A run of frames at a time (forward kinematics is frame by frame: the same numbers).
+            world = sample_chunks(a, name, frames, world=True, contacts=contacts)
+            local = sample_chunks(a, name, frames, world=False, contacts=contacts)
+            for (rows, rot_d, pos_d), (_, local_d, _) in zip(world, local):
+                part = m.slice(rows.start, rows.stop)
+                yield motion_world(part), (rot_d, pos_d), part.rotations, local_d
         metric = ErrorMetric(cm_per_unit=u.cm_per_unit, height_units=u.height_units)
-        reports.append(metric.evaluate(m.skeleton, (rot_o, pos_o), (rot_d, pos_d), m.rotations, local_d))
+        reports.append(metric.evaluate_chunks(m.skeleton, chunks()))
     return reports
 
 

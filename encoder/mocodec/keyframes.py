@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import forward_kinematics, held_intervals, interval_motion, node_major
+from .kinematics import held_intervals, interval_motion, motion_world
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -103,7 +103,7 @@ class Track:
     quant_scale: float = 1.0
     keys: np.ndarray | None = None  # None: folded to a constant
     key_values: np.ndarray | None = None  # (K, d) before quantization
-    recon: np.ndarray | None = None  # what the runtime decodes on every frame, once asked (_track_recon)
+    recon: np.ndarray | None = None  # what the runtime decodes on every frame, once asked (_track_recon; translations and scales)
     ref_codes: np.ndarray | None = None   # int16 MRPs of ``ref`` as stored
     axis_codes: np.ndarray | None = None  # int16 axis as stored
     quantizer: Quantizer | None = None
@@ -127,6 +127,14 @@ class Track:
 def f32_exact(a: np.ndarray) -> np.ndarray:
     """``a`` rounded to float32, as float64 (what the runtime holds)."""
     return np.asarray(a, dtype=np.float32).astype(np.float64)
+
+
+def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a * b`` of two (F, d) arrays, a broadcast view when both are one row broadcast over the
+    frames (a scale at rest below a scale at rest): the same numbers without the F rows."""
+    if a.strides[0] == 0 and b.strides[0] == 0:
+        return np.broadcast_to(a[0] * b[0], np.broadcast_shapes(a.shape, b.shape))
+    return a * b
 
 
 def _reference(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -373,7 +381,7 @@ class Compensation:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.rot_w, self.pos_w = forward_kinematics(sk, motion.rotations, motion.translations, motion.scales)
+        self.rot_w, self.pos_w = motion_world(motion, shared=True)  # the runtime check's originals too
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
@@ -498,9 +506,14 @@ class KeyframeFitter:
         self.tol_units = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
         self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
         self.mandatory = self.mandatory_keys()
+        self._fits = 0
+        self._has_children = np.zeros(motion.skeleton.node_count, dtype=bool)
+        self._has_children[motion.skeleton.parents[motion.skeleton.parents >= 0]] = True
+        self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
 
     # -------------------------------------------------------------- passes
     def _fit(self, track: Track) -> None:
+        self._fits += 1  # a pass tells a node's refitted tracks by this count
         keep = untouched_keys(track) if self.local_refits else None
         fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
         if self.local_refits:
@@ -513,50 +526,72 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         n = sk.node_count
-        rot_d = node_major((self.frames, n, 4))
-        pos_d = node_major((self.frames, n, 3))
-        scale_d = node_major((self.frames, n, 3))
+        # Per node (F, 4 | 3) arrays, not one (F, N, d) block: a node whose value is the same on
+        # every frame (a scale at rest) stays a broadcast view, a node whose parent and own track
+        # are as they were keeps its previous arrays (the same numbers, not computed again),
+        # and the previous pass's arrays are let go node by node, so that a pass holds one
+        # decoded pose of the clip, not two.
+        rot_d: list[np.ndarray] = [np.empty(0)] * n
+        pos_d: list[np.ndarray] = [np.empty(0)] * n
+        scale_d: list[np.ndarray] = [np.empty(0)] * n
         moved = np.zeros(n, dtype=bool)
         prev = self._decoded
+        self._decoded = None
         rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
+            same_parent = prev is not None and not parent_moved
+            fits = self._fits
             local_t = self._vector_part(tracks, refit, i, TRANS, sk.offsets[i])
-            if p < 0:
-                pos_d[:, i] = local_t
+            if same_parent and self._fits == fits:
+                pos_d[i] = prev[1][i]
+            elif p < 0:
+                pos_d[i] = local_t
             else:
-                pos_d[:, i] = pos_d[:, p] + R.quat_rotate(rot_d[:, p], scale_d[:, p] * local_t)
+                pos_d[i] = pos_d[p] + R.quat_rotate(rot_d[p], scale_d[p] * local_t)
             # Rotation.
             key = (i, ROT)
-            if key in tracks:
-                t = tracks[key]
-                parent_rot = rot_d[:, p] if p >= 0 else None
+            fits = self._fits
+            t = tracks.get(key)
+            if t is not None:
+                parent_rot = rot_d[p] if p >= 0 else None
                 if self.local_refits and t.target is not None and prev is not None:
                     # Only the frames whose decoded parent or position moved get a new target.
-                    rows = np.flatnonzero(np.any(prev[1][:, i] != pos_d[:, i], axis=1)
+                    rows = np.flatnonzero(np.any(prev[1][i] != pos_d[i], axis=1)
                                           | (rot_moved[:, p] if p >= 0 else False))
                     if len(rows):
-                        target = comp.rotation_target(i, None if p < 0 else parent_rot[rows], pos_d[rows, i], rows)
+                        target = comp.rotation_target(i, None if p < 0 else parent_rot[rows], pos_d[i][rows], rows)
                         if not _retarget_kept(t, target, rows):
-                            _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
+                            _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
                     if len(rows) or key in refit:
                         self._fit(t)
                 elif key in refit or parent_moved or t.target is None:
-                    _retarget(t, comp.rotation_target(i, parent_rot, pos_d[:, i]), self.motion, i)
+                    _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
                     self._fit(t)
-                local_q = _track_recon(t)
-            else:  # the rest rotation on every frame (identity for BVH)
-                local_q = np.broadcast_to(f32_exact(sk.rest_rotations[i]), (self.frames, 4))
-            rot_d[:, i] = local_q if p < 0 else R.quat_multiply(rot_d[:, p], local_q)
+            if not self._has_children[i]:  # no node reads a leaf's decoded rotation
+                rot_d[i] = _UNREAD
+            elif same_parent and self._fits == fits:
+                rot_d[i] = prev[0][i]
+            else:
+                # A rotation track's decoded rotations are not kept on it (F x 4 numbers a track):
+                # the next pass keeps this node's arrays, or refits the track.
+                local_q = (_track_recon(t, keep=False) if t is not None  # the rest rotation (identity for BVH)
+                           else np.broadcast_to(f32_exact(sk.rest_rotations[i]), (self.frames, 4)))
+                rot_d[i] = np.asarray(local_q, dtype=np.float64) if p < 0 else R.quat_multiply(rot_d[p], local_q)
             # Scale (not compensated: its target is the original).
+            fits = self._fits
             local_s = self._vector_part(tracks, refit, i, SCALE, sk.rest_scales[i])
-            scale_d[:, i] = local_s if p < 0 else scale_d[:, p] * local_s
-            moved[i] = prev is None or not (np.array_equal(prev[0][:, i], rot_d[:, i])
-                                            and np.array_equal(prev[1][:, i], pos_d[:, i])
-                                            and np.array_equal(prev[2][:, i], scale_d[:, i]))
-            if self.local_refits and prev is not None and moved[i]:
-                rot_moved[:, i] = np.any(prev[0][:, i] != rot_d[:, i], axis=1)
+            if same_parent and self._fits == fits:
+                scale_d[i] = prev[2][i]
+            else:
+                scale_d[i] = local_s if p < 0 else _product(scale_d[p], local_s)
+            moved[i] = prev is None or not (_same(prev[0][i], rot_d[i]) and _same(prev[1][i], pos_d[i])
+                                            and _same(prev[2][i], scale_d[i]))
+            if self.local_refits and prev is not None and moved[i] and self._has_children[i]:
+                rot_moved[:, i] = np.any(prev[0][i] != rot_d[i], axis=1)
+            if prev is not None:  # nothing after this node reads its previous pose
+                prev[0][i] = prev[1][i] = prev[2][i] = np.empty(0)
         self._decoded = (rot_d, pos_d, scale_d)
 
     def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
@@ -840,9 +875,9 @@ def _track_values(track: Track) -> np.ndarray:
                        np.arange(len(track.values), dtype=np.float64), track.split)
 
 
-def _track_recon(track: Track) -> np.ndarray:
+def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     """What the runtime decodes for a track on every frame: local rotation, translation or
-    scale (kept on the track until it is fitted again: a repair pass asks for every track's)."""
+    scale (with ``keep``, kept on the track until it is fitted again)."""
     if track.recon is not None:
         return track.recon
     frames = len(track.values)
@@ -851,5 +886,14 @@ def _track_recon(track: Track) -> np.ndarray:
     else:
         values = _track_values(track)
         recon = values if track.kind in VECTOR_KINDS else _track_rotations(track, values)
-    track.recon = recon
+    if keep:
+        track.recon = recon
     return recon
+
+
+_UNREAD = np.empty((0, 4))  # the decoded rotation of a leaf, which no pass reads
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.array_equal``, at once for the same array (a node's arrays kept from the last pass)."""
+    return a is b or np.array_equal(a, b)

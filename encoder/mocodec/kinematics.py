@@ -5,6 +5,8 @@ One pass over the nodes in parent-first order; every step works on all frames at
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .motion import Motion, Skeleton
@@ -30,7 +32,11 @@ def forward_kinematics(
     world_pos = node_major(translations.shape)
     world_scale = None
     if scales is not None:
-        scales = as_node_major(np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape))
+        scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), translations.shape)
+        if scales.strides[0] == 0 and np.all(scales[0] == 1.0):
+            scales = None  # the rest scales of a clip without scales: x 1 changes no number
+    if scales is not None:
+        scales = as_node_major(scales)
         world_scale = node_major(translations.shape)
     for i, p in enumerate(skeleton.parents):
         if p < 0:
@@ -69,10 +75,34 @@ def as_node_major(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+def motion_world(motion: Motion, shared: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` of a motion, its scales
-    composed."""
-    return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
+    composed.
+
+    ``shared``: read-only arrays, the same ones for every caller that asks while some caller
+    still holds them (the key-frame fitter's compensation and the encoder's runtime check of a
+    clip both need its world pose: one copy of a long clip's, not two)."""
+    if not shared:
+        return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
+    inputs = (motion.rotations, motion.translations, motion.scales)
+    held = _SHARED_WORLD.get(id(motion))
+    if held is not None:
+        owner, sources, rot_ref, pos_ref = held
+        rot, pos = rot_ref(), pos_ref()
+        if (owner() is motion and all(r() is a for r, a in zip(sources, inputs))
+                and rot is not None and pos is not None):
+            return rot, pos
+    rot, pos = forward_kinematics(motion.skeleton, *inputs)
+    rot.flags.writeable = pos.flags.writeable = False
+    key = id(motion)
+    _SHARED_WORLD[key] = (weakref.ref(motion, lambda _, k=key: _SHARED_WORLD.pop(k, None)),
+                          tuple(weakref.ref(a) for a in inputs), weakref.ref(rot), weakref.ref(pos))
+    return rot, pos
+
+
+# id(motion) -> weak references to it, to the arrays its world pose was computed from, and to
+# that pose: kept only while someone else holds the pose (motion_world(shared=True)).
+_SHARED_WORLD: dict[int, tuple] = {}
 
 
 def world_positions(motion: Motion) -> np.ndarray:

@@ -9,11 +9,16 @@ measures how far they move. Sizes follow DESIGN.md's two conventions.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
 from .motion import Motion, Skeleton
 from .rotations import quat_angle, rotate_axis
+
+Chunk = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray | None, np.ndarray | None]
+"""Frames of one clip for :meth:`ErrorMetric.evaluate_chunks`: original and decoded world
+(rotations, positions), original and decoded local rotations (None: no angle error)."""
 
 ACL_BYTES_PER_BONE_SAMPLE = 40  # float32 quaternion + translation + scale per bone per sample
 
@@ -100,15 +105,30 @@ class ErrorMetric:
         ``original_local`` / ``decoded_local`` (F, N, 4) local rotations give the angle error;
         without them it is reported as NaN.
         """
-        rot_o, pos_o = original
-        rot_d, pos_d = decoded
-        err = np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit
+        return self.evaluate_chunks(skeleton, [(original, decoded, original_local, decoded_local)])
+
+    def evaluate_chunks(self, skeleton: Skeleton, chunks: Iterable[Chunk]) -> ErrorReport:
+        """:meth:`evaluate` given the clip a run of frames at a time, in frame order
+        (``(original, decoded, original_local, decoded_local)`` each): the same figures, with
+        only the per-sample errors kept of each chunk, so that a long clip's transforms are
+        never held whole."""
+        errs, shells, angles = [], [], []
+        for (rot_o, pos_o), (rot_d, pos_d), original_local, decoded_local in chunks:
+            errs.append(np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit)
+            shells.append(self._shell_errors(rot_o, pos_o, rot_d, pos_d))
+            if original_local is not None and decoded_local is not None and angles is not None:
+                angles.append(np.degrees(quat_angle(original_local, decoded_local)))
+            else:
+                angles = None
+        err = np.concatenate(errs)
+        del errs
+        shell = np.concatenate(shells)
+        del shells
         per_node_mean = err.mean(axis=0)
         flat = int(np.argmax(err))
         worst_frame, worst_node = divmod(flat, err.shape[1])
-        shell = self._shell_errors(rot_o, pos_o, rot_d, pos_d)
-        if original_local is not None and decoded_local is not None:
-            ang = np.degrees(quat_angle(original_local, decoded_local))
+        if angles is not None:
+            ang = np.concatenate(angles)
             angle_mean, angle_max = float(ang.mean()), float(ang.max())
         else:
             angle_mean = angle_max = float("nan")

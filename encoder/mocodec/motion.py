@@ -173,7 +173,7 @@ class Motion:
     name : str
         Clip name (the file stem for files read from disk, the animation's name for glTF).
     scales : (F, N, 3) float array, default the skeleton's rest scales on every frame
-        Local scales.
+        Local scales (the default is a read-only broadcast view of the rest scales).
     source : dict, optional
         Where the clip came from and how it was sampled (the glTF reader records the file,
         the animation, the resampling rate and the interpolation the error is measured
@@ -194,8 +194,8 @@ class Motion:
     def __post_init__(self) -> None:
         self.rotations = np.asarray(self.rotations, dtype=np.float64)
         self.translations = np.asarray(self.translations, dtype=np.float64)
-        if self.scales is None:
-            self.scales = np.broadcast_to(self.skeleton.rest_scales, self.translations.shape).copy()
+        if self.scales is None:  # a read-only view: a clip without scales holds none per frame
+            self.scales = np.broadcast_to(self.skeleton.rest_scales, self.translations.shape)
         self.scales = np.asarray(self.scales, dtype=np.float64)
 
     @property

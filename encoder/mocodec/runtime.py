@@ -2,6 +2,8 @@
 encoder decodes, so every error it reports is what an engine will see."""
 from __future__ import annotations
 
+from typing import Iterator
+
 import numpy as np
 
 try:
@@ -31,3 +33,29 @@ def decode_world(asset: "Asset", clip: int | str) -> tuple[np.ndarray, np.ndarra
 def decode_local(asset: "Asset", clip: int | str) -> tuple[np.ndarray, np.ndarray]:
     """Local rotations (F, N, 4) and translations (F, N, 3) of every frame of a clip."""
     return asset.sample_frames(clip, world=False)
+
+
+CHUNK_FRAMES = 4096
+"""Frames the encoder samples at a time: a long clip's decoded poses (float64, 80 bytes a node
+a frame) are never held whole."""
+
+
+def sample_chunks(asset: "Asset", clip: int | str, frames: np.ndarray, world: bool = True,
+                  contacts: bool = False) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+    """``(rows, rotations, positions)`` at ``frames`` (frame numbers, fractions allowed),
+    :data:`CHUNK_FRAMES` at a time: ``rows`` the slice of ``frames`` each chunk covers."""
+    frames = np.asarray(frames, dtype=np.float64)
+    for start in range(0, len(frames), CHUNK_FRAMES):
+        rows = slice(start, min(start + CHUNK_FRAMES, len(frames)))
+        rot, pos = asset.sample_frames(clip, frames[rows], world=world, contacts=contacts)
+        yield rows, rot, pos
+
+
+def world_error(asset: "Asset", clip: int | str, reference: np.ndarray, offset: float = 0.0) -> np.ndarray:
+    """Distance (F, N) from each node's world position at frame ``k + offset`` to
+    ``reference[k]`` (F, N, 3), decoded a chunk at a time (the same numbers as whole)."""
+    frames = np.arange(len(reference), dtype=np.float64) + offset
+    out = np.empty(reference.shape[:2])
+    for rows, _, pos in sample_chunks(asset, clip, frames):
+        out[rows] = np.linalg.norm(pos - reference[rows], axis=-1)
+    return out

@@ -191,4 +191,5 @@ def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units:
             return Attempt(payload, errors, n, True)
         if n < rounds:
             adjust(errors)
+            del errors  # not held while the next check measures (F x N numbers of a long clip)
     return Attempt(payload, errors, rounds, False)

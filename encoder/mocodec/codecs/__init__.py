@@ -76,7 +76,7 @@ def scale_deviation(motion: Motion) -> tuple[float, int]:
 
 def without_scale(motion: Motion) -> Motion:
     """``motion`` with every scale at its rest value (for codecs without scale tracks)."""
-    rest = np.broadcast_to(motion.skeleton.rest_scales, motion.scales.shape).copy()
+    rest = np.broadcast_to(motion.skeleton.rest_scales, motion.scales.shape)  # read-only, no frames held
     return dataclasses.replace(motion, scales=rest)
 
 
