@@ -139,14 +139,24 @@ def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def halfway_positions(motion: Motion) -> np.ndarray:
     """World positions ``(F-1, N, 3)`` of the original half-way between consecutive frames:
     local rotations by slerp at one half (the normalised sum of the two quaternions on one
-    hemisphere), translations and scales averaged, then forward kinematics."""
-    q0, q1 = motion.rotations[:-1], motion.rotations[1:]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
-    rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
-    trans = 0.5 * (motion.translations[:-1] + motion.translations[1:])
-    scale = 0.5 * (motion.scales[:-1] + motion.scales[1:])
-    return forward_kinematics(motion.skeleton, rot, trans, scale)[1]
+    hemisphere), translations and scales averaged, then forward kinematics; a run of
+    :data:`HALFWAY_CHUNK` intervals at a time, so a long clip's temporaries stay small (each
+    frame's numbers are the same as whole)."""
+    intervals = motion.frame_count - 1
+    out = np.empty((intervals, motion.rotations.shape[1], 3))
+    for start in range(0, intervals, HALFWAY_CHUNK):
+        a, b = slice(start, min(start + HALFWAY_CHUNK, intervals)), slice(start + 1, min(start + HALFWAY_CHUNK, intervals) + 1)
+        q0, q1 = motion.rotations[a], motion.rotations[b]
+        dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+        rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
+        rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
+        trans = 0.5 * (motion.translations[a] + motion.translations[b])
+        scale = 0.5 * (motion.scales[a] + motion.scales[b])
+        out[a] = forward_kinematics(motion.skeleton, rot, trans, scale)[1]
+    return out
+
+
+HALFWAY_CHUNK = 8192
 
 
 def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
