@@ -165,9 +165,11 @@ static uint32_t cell_of(const track_layout* t, uint32_t f) {
 }
 
 static uint32_t cell_frame(const track_layout* t, uint32_t c) {
-    if (c == 0) return 0;
-    if (c >= t->cells - 1u) return t->frames - 1u;
-    return 1u + ((c - 1u) << t->cell_shift);
+    /* Without branches (random access meets every case): the last cell's formula start is at or
+     * past the last frame, every other cell's before it. */
+    uint32_t f = 1u + ((c - 1u) << t->cell_shift);
+    f = f < t->frames - 1u ? f : t->frames - 1u;
+    return c ? f : 0u;
 }
 
 /* The frame of key k, whose cell is c. */
@@ -176,17 +178,27 @@ static uint32_t key_frame(const uint8_t* p, const track_layout* t, uint32_t k, u
     return t->in_cell_bits ? f + mcd_read_bits(p + t->places, (uint64_t)k * t->in_cell_bits, t->in_cell_bits) : f;
 }
 
-/* The r-th set bit (from 0) of x, which has more than r. */
+/* The positions of the set bits of a nibble, two bits each from the lowest. */
+static const uint8_t nibble_select[16] = {0x00, 0x00, 0x01, 0x04, 0x02, 0x08, 0x09, 0x24,
+                                          0x03, 0x0C, 0x0D, 0x34, 0x0E, 0x38, 0x39, 0xE4};
+
+/* The r-th set bit (from 0) of x, which has more than r. Without data-dependent branches (a
+ * random access's select is unpredictable): the byte from running counts of every byte at
+ * once, then the nibble and a table. */
 static uint32_t select_in_word(uint64_t x, uint32_t r) {
-    uint32_t at = 0, n;
-    n = mcd_popcount(x & 0xFFFFFFFFu);
-    if (r >= n) r -= n, x >>= 32, at += 32;
-    n = mcd_popcount(x & 0xFFFFu);
-    if (r >= n) r -= n, x >>= 16, at += 16;
-    n = mcd_popcount(x & 0xFFu);
-    if (r >= n) r -= n, x >>= 8, at += 8;
-    while (r--) x &= x - 1u;
-    return at + mcd_lowest_bit(x);
+    const uint64_t ones = 0x0101010101010101u, highs = 0x8080808080808080u;
+    uint64_t s = x - ((x >> 1) & 0x5555555555555555u), at_most;
+    uint32_t byte, b, low, nib;
+    s = (s & 0x3333333333333333u) + ((s >> 2) & 0x3333333333333333u);
+    s = ((s + (s >> 4)) & 0x0F0F0F0F0F0F0F0Fu) * ones; /* byte k: the set bits of bytes 0 ... k */
+    at_most = ((((uint64_t)r * ones) | highs) - s) & highs; /* bytes whose count is at most r */
+    byte = mcd_popcount(at_most);                           /* counts rise: the first byte past r */
+    r -= (uint32_t)((s << 8) >> (8u * byte)) & 0xFFu;      /* the bytes below it */
+    b = (uint32_t)(x >> (8u * byte)) & 0xFFu;
+    low = mcd_popcount(b & 15u);
+    nib = r >= low ? 4u : 0u;
+    r -= r >= low ? low : 0u;
+    return 8u * byte + nib + ((nibble_select[(b >> nib) & 15u] >> (2u * r)) & 3u);
 }
 
 /* The bit of the zero that closes cell c: from the start of c's 64-cell block (its cells and
@@ -222,6 +234,44 @@ static uint32_t one_after(const uint8_t* p, const track_layout* t, uint32_t u) {
     uint64_t m = (u & 63u) == 63u ? 0u : bitmap_word(p, t, w) & (~(uint64_t)0 << ((u & 63u) + 1u));
     while (!m && w + 1u < t->words) m = bitmap_word(p, t, ++w);
     return m ? (w << 6) + mcd_lowest_bit(m) : u;
+}
+
+/* 64 unary bits from bit `lo` in one load (the ones around a random access are usually near
+ * each other), with the bitmap's end: bits past it are masked off. */
+typedef struct bit_window {
+    uint64_t w;
+    uint32_t lo, end;
+} bit_window;
+
+static bit_window window_at(const uint8_t* p, const track_layout* t, uint32_t around) {
+    bit_window b;
+    uint32_t byte = around > 28u ? (around - 28u) >> 3 : 0u;
+    b.lo = byte << 3;
+    b.end = t->words << 6;
+    b.w = mcd_rd_u64(p + t->bitmap + byte); /* within the payload: its last 8 bytes are padding */
+    if (b.end - b.lo < 64u) b.w &= ((uint64_t)1 << (b.end - b.lo)) - 1u;
+    return b;
+}
+
+/* one_before and one_after, from the window when it holds the answer. */
+static uint32_t prev_one(const uint8_t* p, const track_layout* t, const bit_window* b, uint32_t u) {
+    uint32_t n = u - b->lo;
+    if (u > b->lo && n < 64u) {
+        uint64_t m = b->w & (((uint64_t)1 << n) - 1u);
+        if (m) return b->lo + mcd_highest_bit(m);
+        if (b->lo == 0) return 0;
+    }
+    return one_before(p, t, u);
+}
+
+static uint32_t next_one(const uint8_t* p, const track_layout* t, const bit_window* b, uint32_t u) {
+    uint32_t n = u - b->lo + 1u;
+    if (u >= b->lo && n < 64u) {
+        uint64_t m = b->w & (~(uint64_t)0 << n);
+        if (m) return b->lo + mcd_lowest_bit(m);
+        if (b->lo + 64u >= b->end) return u;
+    }
+    return one_after(p, t, u);
 }
 
 /* The frame of key k, whose one is at bit u (its cell is u - k). */
@@ -311,13 +361,24 @@ static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t b
  * after the group's records in record and component order, so the escapes before it count. */
 RARE_PATH static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
     uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit, mask[4], code[4];
+    uint64_t top = 0, low = 0, below;
     for (k = 0; k < 4u; ++k) {
         mask[k] = ((uint32_t)1 << g->width[k]) - 1u;
         code[k] = g->width[k] ? (mask[k] + 1u) >> 1 : UINT32_MAX; /* width 0: no escape */
+        if (g->width[k]) {
+            top |= (uint64_t)1 << (g->shift[k] + g->width[k] - 1u);
+            low |= (uint64_t)1 << g->shift[k];
+        }
     }
+    below = top - low; /* each field's bits under its top bit */
     for (j = 1; j <= i; ++j, bit += g->rec_bits) {
-        uint64_t w = record_word(data, g, bit);
-        uint32_t n = j < i ? t->dims : c;
+        uint64_t w = record_word(data, g, bit), x = w ^ top;
+        uint32_t n;
+        /* Most records escape nothing: a field is the escape code (its top bit alone) where x
+         * is zero, i.e. where the top bit of ((x & below) + below) | x is clear (no carry
+         * leaves a field). */
+        if (j < i && !(~(((x & below) + below) | x) & top)) continue;
+        n = j < i ? t->dims : c;
         for (k = 0; k < n; ++k) {
             at += ((uint32_t)w & mask[k]) == code[k] ? t->abits[k] : 0u;
             w >>= g->width[k];
@@ -418,6 +479,8 @@ static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
     ts->t[to] = ts->t[from];
 }
 
+/* The curve of the window, all four components (a component past the track's is 0 in every
+ * key, so its coefficients are 0): a constant count unrolls. */
 static void set_curve(track_state* ts) {
     ts->t1 = ts->t[1];
     ts->t2 = ts->t[2];
@@ -434,9 +497,9 @@ static void set_curve(track_state* ts) {
             memcpy(v[3], v[2], sizeof v[3]);
             t[3] = t[2];
         }
-        ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, ts->L.dims, ts->coef);
+        ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, 4u, ts->coef);
     } else {
-        ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, ts->L.dims, ts->coef);
+        ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, 4u, ts->coef);
     }
     ts->valid = 1;
 }
@@ -447,23 +510,25 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
     int64_t q[4];
     if (xi > t->frames - 1u) xi = t->frames - 1u;
+    bit_window b;
     c = cell_of(t, xi);
     u[1] = cell_end(p, t, c);
     i = u[1] - c - 1u; /* the ones before the zero closing c are the keys in cells up to c */
-    u[1] = one_before(p, t, u[1]);
+    b = window_at(p, t, u[1]);
+    u[1] = prev_one(p, t, &b, u[1]);
     /* x at the last frame: its segment is the one before. Keys of x's own cell after x (at
      * most a cell's frames; key 0 is frame 0): the key before them. */
     if (i >= last) {
         i = last - 1u;
-        u[1] = one_before(p, t, u[1]);
+        u[1] = prev_one(p, t, &b, u[1]);
     }
     while (t->in_cell_bits && i > 0 && key_frame_at(p, t, i, u[1]) > xi) {
         i--;
-        u[1] = one_before(p, t, u[1]);
+        u[1] = prev_one(p, t, &b, u[1]);
     }
-    u[0] = i > 0 ? one_before(p, t, u[1]) : u[1];
-    u[2] = one_after(p, t, u[1]);
-    u[3] = i + 2u <= last ? one_after(p, t, u[2]) : u[2];
+    u[0] = i > 0 ? prev_one(p, t, &b, u[1]) : u[1];
+    u[2] = next_one(p, t, &b, u[1]);
+    u[3] = i + 2u <= last ? next_one(p, t, &b, u[2]) : u[2];
     ts->i = i;
     ts->u3 = u[3];
     /* Keys i - 1 ... i + 2, ends repeated. */
@@ -476,42 +541,51 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     set_curve(ts);
 }
 
+/* Keys a step forward may read one by one before a fresh locate is cheaper. */
+#define MAX_ADVANCE 3u
+
 /* Sequential playback and short steps forward (a game tick moves a few frames): the window
- * moves on by one key, reading the new last key. */
-static void advance(const uint8_t* p, track_state* ts) {
+ * moves on by one key, reading the new last key, whose unary bit and frame the scan ahead
+ * found. */
+static void advance(const uint8_t* p, track_state* ts, uint32_t u, uint32_t frame) {
     uint32_t last = ts->L.keys - 1u, s;
     for (s = 0; s < 3u; ++s) repeat_slot(ts, s, s + 1u); /* slot by slot: no overlapping copy */
     ts->i++;
     if (ts->i + 2u <= last) {
         int64_t q[4];
-        ts->u3 = one_after(p, &ts->L, ts->u3);
+        ts->u3 = u;
         key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
-        store_key(ts, 3, key_frame_at(p, &ts->L, ts->i + 2u, ts->u3), q);
+        store_key(ts, 3, frame, q);
     } else {
         repeat_slot(ts, 3, 2);
     }
 }
 
-/* Keys a step forward may read one by one before a fresh locate is cheaper. */
-#define MAX_ADVANCE 3u
-
 /* Keys the window moves on for x at or past t_{i+1}: the first n with x < t_{i+1+n} (or
- * t_{i+1+n} the last key), found from the key times alone; 0 when more than MAX_ADVANCE. */
-static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x) {
-    uint32_t n = 1, k = ts->i + 2u, u = ts->u3, last = ts->L.keys - 1u;
-    float f = ts->t[3];
-    while (x >= f && k < last) {
-        if (++n > MAX_ADVANCE) return 0;
-        u = one_after(p, &ts->L, u);
-        f = (float)key_frame_at(p, &ts->L, ++k, u);
+ * t_{i+1+n} the last key), found from the key times alone, with the unary bit and frame of
+ * each key the window takes on (past the last key: none); 0 when more than MAX_ADVANCE. */
+static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x, uint32_t u[MAX_ADVANCE],
+                           uint32_t f[MAX_ADVANCE]) {
+    uint32_t n, k = ts->i + 2u, at = ts->u3, last = ts->L.keys - 1u;
+    for (n = 1; n <= MAX_ADVANCE; ++n) {
+        if (k < last) { /* key k + 1, the window's new last key */
+            at = one_after(p, &ts->L, at);
+            u[n - 1u] = at;
+            f[n - 1u] = key_frame_at(p, &ts->L, ++k, at);
+        } else { /* unread: the window repeats the last key */
+            u[n - 1u] = at;
+            f[n - 1u] = 0;
+        }
+        /* The segment's end is now key i + 1 + n. */
+        if (ts->i + 1u + n >= last || x < (n == 1u ? ts->t[3] : (float)f[n - 2u])) return n;
     }
-    return n;
+    return 0;
 }
 
 /* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
  * Either way the window is the four keys around x's segment, so the curve is the same bits. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, n, last = ts->L.keys - 1u;
+    uint32_t c, k, n, last = ts->L.keys - 1u, u[MAX_ADVANCE], f[MAX_ADVANCE];
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -520,11 +594,11 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     if (!ts->valid || x < ts->t1) {
         locate(p, ts, x);
     } else if (x >= ts->t2 && ts->i + 1u < last) { /* x = the last key is the last segment's */
-        n = keys_ahead(p, ts, x);
+        n = keys_ahead(p, ts, x, u, f);
         if (n == 0) {
             locate(p, ts, x);
         } else {
-            while (n--) advance(p, ts);
+            for (k = 0; k < n; ++k) advance(p, ts, u[k], f[k]);
             set_curve(ts);
         }
     }

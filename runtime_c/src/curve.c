@@ -29,18 +29,3 @@ void mcd_axis_at(const uint8_t* p, float axis[3]) {
     inv = 1.0f / sqrtf(n2);
     for (k = 0; k < 3; ++k) axis[k] *= inv;
 }
-
-/* The Hermite segment with finite-difference tangents, expanded in powers of s. */
-float mcd_segment_coefficients(const float t[4], const float v[4][4], uint32_t dims, float coef[4][4]) {
-    float h = t[2] - t[1], a = h / (t[2] - t[0]), b = h / (t[3] - t[1]);
-    uint32_t c;
-    for (c = 0; c < dims; ++c) {
-        float p1 = v[1][c], p2 = v[2][c];
-        float m1 = a * (p2 - v[0][c]), m2 = b * (v[3][c] - p1);
-        coef[c][0] = p1;
-        coef[c][1] = m1;
-        coef[c][2] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
-        coef[c][3] = 2.0f * (p1 - p2) + m1 + m2;
-    }
-    return 1.0f / h;
-}
