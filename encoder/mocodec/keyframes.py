@@ -29,7 +29,7 @@ from .kinematics import held_intervals, interval_motion, motion_world
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix, budget_multipliers,
                         initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
@@ -755,15 +755,9 @@ class HalfwayHold:
         if not failing.any():
             return changed
         for k, t in enumerate(tracks):
-            mask = failing & reach.affects[k][None, :]
-            rows = mask.any(axis=1)
-            if not rows.any():
+            spread = budget_multipliers(ratio, failing, reach.affects[k], factor, 1)
+            if spread is None:
                 continue
-            worst = np.where(mask, ratio, np.inf).min(axis=1)
-            mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
-            spread = mult.copy()
-            spread[1:] = np.minimum(spread[1:], mult[:-1])
-            spread[:-1] = np.minimum(spread[:-1], mult[1:])
             at = np.flatnonzero((spread < 1.0) & self.smooth)
             cap = self.factor * np.minimum(t.budget[at], t.budget[at + 1])
             wanted = np.minimum(cap, _half_errors(t, at) * spread[at])

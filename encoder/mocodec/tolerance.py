@@ -132,20 +132,31 @@ def tighten(
         return changed
     frames = errors_units.shape[0]
     for t, budget in enumerate(budgets):
-        mask = failing & reach.affects[t][None, :]
-        rows = mask.any(axis=1)
-        if not rows.any():
+        spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius)
+        if spread is None:
             continue
-        worst = np.where(mask, ratio, np.inf).min(axis=1)
-        mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
-        # Spread each failing frame's multiplier to its neighbours (smallest wins).
-        spread = mult.copy()
-        for r in range(1, radius + 1):
-            spread[r:] = np.minimum(spread[r:], mult[:-r])
-            spread[:-r] = np.minimum(spread[:-r], mult[r:])
         budget *= spread[:frames]
         changed.append(t)
     return changed
+
+
+def budget_multipliers(ratio: np.ndarray, failing: np.ndarray, affects: np.ndarray, factor: float,
+                       radius: int) -> np.ndarray | None:
+    """Per row of ``ratio`` (tolerance / error, (R, N)), the multiplier of one track's budget:
+    ``min(factor, 0.95 * worst ratio)`` on the rows where a point it moves (``affects`` (N,))
+    fails, spread ``radius`` rows each way (smallest wins), 1 elsewhere; None when it moves no
+    failing point."""
+    mask = failing & affects[None, :]
+    rows = mask.any(axis=1)
+    if not rows.any():
+        return None
+    worst = np.where(mask, ratio, np.inf).min(axis=1)
+    mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
+    spread = mult.copy()
+    for r in range(1, radius + 1):
+        spread[r:] = np.minimum(spread[r:], mult[:-r])
+        spread[:-r] = np.minimum(spread[:-r], mult[r:])
+    return spread
 
 
 
