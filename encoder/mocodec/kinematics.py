@@ -136,6 +136,10 @@ def halfway_world(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (halfway_positions(motion), *interval_motion(motion, world_positions(motion)))
 
 
+HALFWAY_CHUNK = 8192
+"""Intervals :func:`halfway_positions` builds at a time."""
+
+
 def halfway_positions(motion: Motion) -> np.ndarray:
     """World positions ``(F-1, N, 3)`` of the original half-way between consecutive frames:
     local rotations by slerp at one half (the normalised sum of the two quaternions on one
@@ -145,7 +149,8 @@ def halfway_positions(motion: Motion) -> np.ndarray:
     intervals = motion.frame_count - 1
     out = np.empty((intervals, motion.rotations.shape[1], 3))
     for start in range(0, intervals, HALFWAY_CHUNK):
-        a, b = slice(start, min(start + HALFWAY_CHUNK, intervals)), slice(start + 1, min(start + HALFWAY_CHUNK, intervals) + 1)
+        stop = min(start + HALFWAY_CHUNK, intervals)
+        a, b = slice(start, stop), slice(start + 1, stop + 1)
         q0, q1 = motion.rotations[a], motion.rotations[b]
         dot = np.sum(q0 * q1, axis=-1, keepdims=True)
         rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
@@ -154,9 +159,6 @@ def halfway_positions(motion: Motion) -> np.ndarray:
         scale = 0.5 * (motion.scales[a] + motion.scales[b])
         out[a] = forward_kinematics(motion.skeleton, rot, trans, scale)[1]
     return out
-
-
-HALFWAY_CHUNK = 8192
 
 
 def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
