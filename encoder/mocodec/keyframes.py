@@ -35,6 +35,10 @@ from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ances
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
 TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
+# A rotation that roams everywhere (CMU's thumbs) makes a twist track's parameters jump where its
+# swing passes 180 degrees, many times a clip; MRPs that change hemisphere only past this |p|
+# (288 degrees) jump far less often (swinging_mrp_track).
+SWING_MRP_SWITCH = 3.0
 
 
 @dataclass
@@ -112,6 +116,7 @@ class Track:
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (None, inf: not held)
     fitted: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None  # (values, budget, half_budget) its keys were last fitted to (local refits)
+    mrp_limit: float = TWIST_MRP_LIMIT  # largest |p| a retarget keeps (SWING_MRP_SWITCH for swinging_mrp_track)
 
     @property
     def is_rotation(self) -> bool:
@@ -174,15 +179,32 @@ def _twist_axis(motion: Motion, node: int, rel: np.ndarray) -> np.ndarray:
 
 
 def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
-    """A rotation track for local rotations ``q`` (F, 4) of ``node``."""
+    """A rotation track for local rotations ``q`` (F, 4) of ``node``: MRPs when they stay
+    within 180 degrees of the reference, else a twist track, unless the twist's parameters
+    jump often (:func:`_parameter_flips`: a swing passing 180 degrees) and MRPs that change
+    hemisphere late (:func:`swinging_mrp_track`) jump at most half as often."""
     q = R.quat_make_continuous(q)
     ref_codes, ref = _reference(R.quat_mean(q))
     rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(ref), q))
     if np.mean(rel[:, 3]) < 0:
         rel = -rel
-    p = R.mrp_from_quat(rel)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a frame at the antipode: NaN, not <= 1
+        p = R.mrp_from_quat(rel)
     if np.max(np.linalg.norm(p, axis=1)) <= TWIST_MRP_LIMIT:
         return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes)
+    twist = _twist_track_from(q, rel, motion, node)
+    every = np.arange(len(q) - 1)
+    flips = int(np.count_nonzero(_parameter_flips(twist, every)))
+    if flips:  # half-way, a jump is a miss (no curve follows slerp across it)
+        swinging = swinging_mrp_track(q, node)
+        if 2 * np.count_nonzero(_parameter_flips(swinging, every)) <= flips:
+            return swinging
+    return twist
+
+
+def _twist_track_from(q: np.ndarray, rel: np.ndarray, motion: Motion, node: int) -> Track:
+    """A twist track (``KIND_TWIST``) for continuous local rotations ``q`` (F, 4), ``rel``
+    the same relative to their mean (which picks the twist axis)."""
     axis_codes, axis = _axis(_twist_axis(motion, node, rel))
     # Swing-twist: q = twist(axis, theta) * rest, theta unwrapped so it may exceed a turn.
     half = np.unwrap(np.arctan2(q[:, :3] @ axis, q[:, 3]))
@@ -201,6 +223,39 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     if bounded is not None:
         values = bounded
     return Track(node, KIND_TWIST, values, q, ref, axis, ref_codes=ref_codes, axis_codes=axis_codes)
+
+
+def swinging_mrp_track(q: np.ndarray, node: int) -> Track:
+    """A plain MRP track (``KIND_MRP``) for continuous local rotations ``q`` (F, 4) that go
+    round: each frame's MRPs on the hemisphere of the frame before, until the rotation has gone
+    past 180 degrees from the reference and on to where |p| would pass
+    :data:`SWING_MRP_SWITCH`; the parameters then change hemisphere (a jump, not of the
+    rotation) on the interval of that excursion where the rotation turns fastest, where a
+    capture's glitch is, rather than where it moves smoothly."""
+    ref_codes, ref = _reference(R.quat_mean(q))
+    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(np.broadcast_to(ref, q.shape)), q))
+    if np.mean(rel[:, 3]) < 0:
+        rel = -rel
+    w = rel[:, 3]
+    turn = R.quat_angle(q[:-1], q[1:])
+    # |p| = sqrt((1 - w) / (1 + w)) on a frame's side: |p| > 1 where w < 0, > the limit where w < edge.
+    edge = (1.0 - SWING_MRP_SWITCH ** 2) / (1.0 + SWING_MRP_SWITCH ** 2)
+    side = np.ones(len(w))
+    s, f = 1.0, 0
+    while True:  # one pass per change of hemisphere (a few a clip)
+        far = np.flatnonzero(s * w[f:] < edge)
+        if not len(far):
+            side[f:] = s
+            break
+        g = f + int(far[0])
+        near = np.flatnonzero(s * w[f:g] >= 0.0)  # the excursion past 180 degrees starts after the last
+        h = f + int(near[-1]) if len(near) else max(f - 1, 0)
+        k = h + int(np.argmax(turn[h:g])) if g > h else g - 1  # switch between frames k and k + 1
+        k = max(k, f - 1)
+        side[f:k + 1] = s
+        s, f = -s, k + 1
+    p = R.mrp_from_quat(rel * side[:, None])
+    return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes, mrp_limit=SWING_MRP_SWITCH)
 
 
 def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
@@ -823,7 +878,7 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
     only (then ``target`` is (len(rows), 4)), in its own parameterisation: the same reference
     and twist axis, each frame on the hemisphere (and a twist on the turn) it had, so that its
     values change only where the target did. False, the track untouched, when it has no
-    parameterisation yet or a new value strays past :data:`TWIST_MRP_LIMIT` from the
+    parameterisation yet or a new value strays past its ``mrp_limit`` from the
     reference."""
     if track.target is None or track.kind not in (KIND_MRP, KIND_TWIST):
         return False
@@ -843,7 +898,7 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
     rel = R.quat_multiply(R.quat_conjugate(track.ref), rest)
     rel[np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0] *= -1.0
     p = R.mrp_from_quat(rel)
-    if len(p) and np.max(np.linalg.norm(p, axis=1)) > TWIST_MRP_LIMIT:
+    if len(p) and np.max(np.linalg.norm(p, axis=1)) > track.mrp_limit:
         return False
     values, full = track.values.copy(), track.target.copy()
     values[at] = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
@@ -860,7 +915,7 @@ def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> No
         track.keys = None  # the old keys belong to another parameterisation
     track.kind, track.values, track.target, track.ref, track.axis = (
         fresh.kind, fresh.values, fresh.target, fresh.ref, fresh.axis)
-    track.ref_codes, track.axis_codes = fresh.ref_codes, fresh.axis_codes
+    track.ref_codes, track.axis_codes, track.mrp_limit = fresh.ref_codes, fresh.axis_codes, fresh.mrp_limit
 
 
 def _track_values(track: Track) -> np.ndarray:

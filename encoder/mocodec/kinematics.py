@@ -180,7 +180,7 @@ def interval_motion_per_node(motion: Motion, world: np.ndarray) -> tuple[np.ndar
 
 
 GLITCH_STEP_CM = 10.0   # a point faster than 12 m/s between two 120 fps frames: a capture glitch
-GLITCH_TURN_DEG = 45.0  # a joint turning faster than 5,400 degrees/s at 120 fps: the same
+GLITCH_TURN_DEG = 90.0  # a joint turning faster than 10,800 degrees/s at 120 fps: the same (issue 16: "say, 90°")
 
 
 def smooth_intervals(step: np.ndarray, turn: np.ndarray, cm_per_unit: float) -> np.ndarray:
