@@ -20,11 +20,14 @@
 #define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
 #define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
 
-/* Rare paths kept out of line, so the hot loops around them keep their registers. */
+/* Rare paths kept out of line, so the hot loops around them keep their registers; the key
+ * decoders inlined into locate, where a random access calls them four times a track. */
 #if defined(__GNUC__) || defined(__clang__)
 #define RARE_PATH __attribute__((noinline, cold))
+#define HOT_INLINE __attribute__((always_inline)) inline
 #else
 #define RARE_PATH
+#define HOT_INLINE
 #endif
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
@@ -291,7 +294,7 @@ typedef struct group_view {
 } group_view;
 
 /* The anchor of row e (the key e * G, or the last key for the last row). */
-static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
+static HOT_INLINE void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
     uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
     uint32_t c;
     a[3] = 0;
@@ -311,7 +314,7 @@ static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int3
     }
 }
 
-static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
+static HOT_INLINE void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
     const uint8_t* table = p + t->table;
     uint64_t bit = (uint64_t)e * t->row_bits;
     uint64_t head = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* offset and widths: <= 48 bits */
@@ -342,7 +345,8 @@ static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, grou
  * in C): the biased value shifted. |v| < 2^37. */
 static int64_t floor_shift(int64_t v, uint32_t s) {
     const int64_t bias = (int64_t)1 << 40;
-    return (int64_t)((uint64_t)(v + (bias << s)) >> s) - bias;
+    /* The compiler folds the test: every common one shifts arithmetically, which is floor. */
+    return ((int64_t)-1 >> 1) == -1 ? v >> s : (int64_t)((uint64_t)(v + (bias << s)) >> s) - bias;
 }
 
 /* floor(v / n), n > 0 (C's division truncates). */
@@ -390,7 +394,7 @@ RARE_PATH static int32_t outlier(const uint8_t* data, const track_layout* t, con
 /* Key j's lattice integers (components past the track's: 0), as wide as any bytes make them:
  * in a validated payload every one is within +-2^30 (check_track reads them all). `g` caches
  * the last group read; row e's anchor is also the end of group e - 1. */
-static void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
+static HOT_INLINE void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
     uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full;
     uint64_t w;
     if (i == 0) { /* an anchor */
@@ -471,7 +475,8 @@ static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int6
     uint32_t c;
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+    if (c < 4u) ts->v[slot][3] = 0.0f; /* a 3-component track: q[3] is 0 */
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -561,12 +566,28 @@ static void advance(const uint8_t* p, track_state* ts, uint32_t u, uint32_t fram
     }
 }
 
+/* True when x is at or past key i + 1 + MAX_ADVANCE (which is before the last), so that
+ * keys_ahead would give up: that key's cell, from the unary bits after the window's last key,
+ * ends at or before x. A random jump forward then locates at once instead of reading keys
+ * one by one first. */
+static int far_ahead(const uint8_t* p, const track_state* ts, float x) {
+    uint32_t from = ts->u3 + 1u, byte = from >> 3, k, cell;
+    uint64_t w = mcd_rd_u64(p + ts->L.bitmap + byte) >> (from & 7u); /* >= 57 bits from `from` */
+    if (ts->L.words * 64u - from < 57u) w &= ((uint64_t)1 << (ts->L.words * 64u - from)) - 1u;
+    w &= ((uint64_t)1 << 57) - 1u;
+    for (k = 2; k < MAX_ADVANCE; ++k) w &= w - 1u; /* the ones of keys i + 3 ... before it */
+    if (!w) return 0;
+    cell = from + mcd_lowest_bit(w) - (ts->i + 1u + MAX_ADVANCE);
+    return cell + 1u < ts->L.cells && (float)cell_frame(&ts->L, cell + 1u) <= x;
+}
+
 /* Keys the window moves on for x at or past t_{i+1}: the first n with x < t_{i+1+n} (or
  * t_{i+1+n} the last key), found from the key times alone, with the unary bit and frame of
  * each key the window takes on (past the last key: none); 0 when more than MAX_ADVANCE. */
 static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x, uint32_t u[MAX_ADVANCE],
                            uint32_t f[MAX_ADVANCE]) {
     uint32_t n, k = ts->i + 2u, at = ts->u3, last = ts->L.keys - 1u;
+    if (x >= ts->t[3] && ts->i + 1u + MAX_ADVANCE < last && far_ahead(p, ts, x)) return 0;
     for (n = 1; n <= MAX_ADVANCE; ++n) {
         if (k < last) { /* key k + 1, the window's new last key */
             at = one_after(p, &ts->L, at);

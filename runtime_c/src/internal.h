@@ -62,7 +62,9 @@ static inline uint32_t mcd_highest_bit(uint64_t m) { /* m != 0 */
 #endif
 }
 static inline uint32_t mcd_popcount(uint64_t m) {
-#if defined(__GNUC__) || defined(__clang__)
+    /* The builtin only where it is an instruction: elsewhere it is a library call, slower
+     * than the arithmetic below. */
+#if (defined(__GNUC__) || defined(__clang__)) && (defined(__POPCNT__) || defined(__aarch64__) || defined(__wasm__))
     return (uint32_t)__builtin_popcountll(m);
 #else
     m = m - ((m >> 1) & 0x5555555555555555u);
