@@ -294,7 +294,7 @@ typedef struct group_view {
 } group_view;
 
 /* The anchor of row e (the key e * G, or the last key for the last row). */
-static HOT_INLINE void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
+static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
     uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
     uint32_t c;
     a[3] = 0;
@@ -314,7 +314,7 @@ static HOT_INLINE void row_anchor(const uint8_t* p, const track_layout* t, uint3
     }
 }
 
-static HOT_INLINE void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
+static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
     const uint8_t* table = p + t->table;
     uint64_t bit = (uint64_t)e * t->row_bits;
     uint64_t head = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* offset and widths: <= 48 bits */
@@ -431,6 +431,15 @@ static HOT_INLINE void key_value(const uint8_t* p, const track_layout* t, group_
     }
 }
 
+/* key_value out of line, for the callers that read one key at a time (a step forward, the
+ * validation): inlined there it only grows their loops. */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((noinline))
+#endif
+static void one_key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
+    key_value(p, t, g, j, q);
+}
+
 /* ---------------------------------------------------------------- sampling state */
 /* A track in the scratch: its layout, what its descriptor stores, the four keys around the
  * last sample (i - 1 ... i + 2, ends repeated) with their curve, and the last group read. */
@@ -475,8 +484,7 @@ static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int6
     uint32_t c;
     ts->t[slot] = (float)frame;
     /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < ts->L.dims; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
-    if (c < 4u) ts->v[slot][3] = 0.0f; /* a 3-component track: q[3] is 0 */
+    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -559,12 +567,16 @@ static void advance(const uint8_t* p, track_state* ts, uint32_t u, uint32_t fram
     if (ts->i + 2u <= last) {
         int64_t q[4];
         ts->u3 = u;
-        key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
+        one_key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
         store_key(ts, 3, frame, q);
     } else {
         repeat_slot(ts, 3, 2);
     }
 }
+
+/* Frames past the window's last key from which a step forward first asks far_ahead: a game
+ * tick moves a frame or two and would only pay for the question. */
+#define FAR_FRAMES 8.0f
 
 /* True when x is at or past key i + 1 + MAX_ADVANCE (which is before the last), so that
  * keys_ahead would give up: that key's cell, from the unary bits after the window's last key,
@@ -587,7 +599,7 @@ static int far_ahead(const uint8_t* p, const track_state* ts, float x) {
 static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x, uint32_t u[MAX_ADVANCE],
                            uint32_t f[MAX_ADVANCE]) {
     uint32_t n, k = ts->i + 2u, at = ts->u3, last = ts->L.keys - 1u;
-    if (x >= ts->t[3] && ts->i + 1u + MAX_ADVANCE < last && far_ahead(p, ts, x)) return 0;
+    if (x >= ts->t[3] + FAR_FRAMES && ts->i + 1u + MAX_ADVANCE < last && far_ahead(p, ts, x)) return 0;
     for (n = 1; n <= MAX_ADVANCE; ++n) {
         if (k < last) { /* key k + 1, the window's new last key */
             at = one_after(p, &ts->L, at);
@@ -785,7 +797,7 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t) {
     g.row = UINT32_MAX;
     for (b = 0; b < t->keys; ++b) {
         int64_t q[4];
-        key_value(p, t, &g, b, q);
+        one_key_value(p, t, &g, b, q);
         for (c = 0; c < t->dims; ++c) {
             if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
             if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
