@@ -196,7 +196,7 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     every = np.arange(len(q) - 1)
     flips = int(np.count_nonzero(_parameter_flips(twist, every)))
     if flips:  # half-way, a jump is a miss (no curve follows slerp across it)
-        swinging = swinging_mrp_track(q, node)
+        swinging = swinging_mrp_track(q, node, ref_codes, ref, rel)
         if 2 * np.count_nonzero(_parameter_flips(swinging, every)) <= flips:
             return swinging
     return twist
@@ -225,17 +225,16 @@ def _twist_track_from(q: np.ndarray, rel: np.ndarray, motion: Motion, node: int)
     return Track(node, KIND_TWIST, values, q, ref, axis, ref_codes=ref_codes, axis_codes=axis_codes)
 
 
-def swinging_mrp_track(q: np.ndarray, node: int) -> Track:
+def swinging_mrp_track(q: np.ndarray, node: int, ref_codes: np.ndarray, ref: np.ndarray,
+                       rel: np.ndarray) -> Track:
     """A plain MRP track (``KIND_MRP``) for continuous local rotations ``q`` (F, 4) that go
     round: each frame's MRPs on the hemisphere of the frame before, until the rotation has gone
     past 180 degrees from the reference and on to where |p| would pass
     :data:`SWING_MRP_SWITCH`; the parameters then change hemisphere (a jump, not of the
     rotation) on the interval of that excursion where the rotation turns fastest, where a
-    capture's glitch is, rather than where it moves smoothly."""
-    ref_codes, ref = _reference(R.quat_mean(q))
-    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(np.broadcast_to(ref, q.shape)), q))
-    if np.mean(rel[:, 3]) < 0:
-        rel = -rel
+    capture's glitch is, rather than where it moves smoothly. ``ref_codes``, ``ref`` and
+    ``rel`` are :func:`_rotation_track_from`'s: the reference of ``q`` and ``q`` relative to it,
+    continuous, on the reference's side on average."""
     w = rel[:, 3]
     turn = R.quat_angle(q[:-1], q[1:])
     # |p| = sqrt((1 - w) / (1 + w)) on a frame's side: |p| > 1 where w < 0, > the limit where w < edge.
