@@ -14,7 +14,7 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import halfway_positions, motion_world
+from .kinematics import halfway_chunks, motion_world
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -83,16 +83,16 @@ class RuntimeCheck:
         self.motions = motions if isinstance(motions, Library) else list(motions)
         self.cm_per_unit, self.codec = list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
-        self._halfway: dict[int, np.ndarray] = {}  # computed when a codec first asks
 
     def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
-        from .runtime import Asset, world_error
+        from .runtime import CHUNK_FRAMES, Asset, world_error, world_error_chunks
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
-        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose
-            if i not in self._halfway:
-                self._halfway[i] = halfway_positions(self.motions[i])
-            return world_error(asset, 0, self._halfway[i], 0.5)
+        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose, built a
+            # run at a time on every call: a long clip's are never held whole (F x N x 3 float64)
+            m = self.motions[i]
+            return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
+                                      (m.frame_count - 1, m.skeleton.node_count), 0.5)
         if i not in self._originals:
             self._originals[i] = motion_world(self.motions[i], shared=True)[1]  # the fitter's own, if it holds it
         return world_error(asset, 0, self._originals[i])
@@ -105,7 +105,7 @@ class RuntimeCheck:
         return OneClipCheck(RuntimeCheck(one, [self.cm_per_unit[i]], self.codec), prefix)
 
     def __getstate__(self) -> dict[str, Any]:
-        return {**self.__dict__, "_originals": {}, "_halfway": {}}
+        return {**self.__dict__, "_originals": {}}
 
 
 @dataclass
@@ -127,7 +127,8 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`); with ``halfway=True``
     the error half-way between frames (F - 1, N) instead, sampled by the runtime at x + 1/2
-    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_positions`)."""
+    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_positions`, a
+    run at a time)."""
     return RuntimeCheck(motions, cm_per_unit, codec)
 
 

@@ -29,8 +29,8 @@ from .kinematics import held_intervals, interval_motion, motion_world
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix, budget_multipliers,
-                        initial_budgets, meet_tolerance, tighten)
+from .tolerance import (ClipCheck, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+                        budget_multipliers, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
@@ -762,14 +762,14 @@ class HalfwayHold:
         self.rounds = 0
 
     def held(self, half_errors: np.ndarray) -> np.ndarray:
-        """Half-way errors (F-1, N) with the intervals not held zeroed."""
-        return np.where((self.smooth & ~self.released)[:, None], half_errors, 0.0)
+        """Half-way errors (F-1, N) with the intervals not held zeroed, in place (the
+        errors are the check's own array): no copy of a long clip's (F-1, N)."""
+        half_errors[~(self.smooth & ~self.released)] = 0.0
+        return half_errors
 
-    def stacked(self, tol_units: np.ndarray) -> np.ndarray:
+    def stacked(self, tol_units: np.ndarray) -> RowTolerance:
         """Per row of :meth:`check`'s errors (2F-1, N): the tolerance on frames, then half-way."""
-        frames = len(self.smooth) + 1
-        return np.concatenate((np.broadcast_to(tol_units, (frames, len(tol_units))),
-                               np.broadcast_to(self.tolerance, (frames - 1, len(tol_units)))))
+        return RowTolerance(tol_units, len(self.smooth) + 1, self.tolerance)
 
     def check(self, check: ClipCheck) -> ClipCheck:
         """``check`` on the frames, then on the held half-way samples (``check(payload,
@@ -777,13 +777,21 @@ class HalfwayHold:
         each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
         def both(payload: bytes) -> np.ndarray:
             self.rounds += 1
-            half = self.held(check(payload, halfway=True))
+            frames = len(self.smooth) + 1
+            # One (2F-1, N) array the two checks are copied into as they come (each is freed
+            # at once), not the two, their held copies and their concatenation.
+            out = np.empty((2 * frames - 1, len(self.tolerance)))
+            half = out[frames:]
+            half[...] = check(payload, halfway=True)
+            self.held(half)
             over = np.any(half > self.tolerance[None, :], axis=1)
             self.fails += over
             self.released |= self.fails > self.RELEASE_AFTER
             if self.rounds > self.HOLD_ROUNDS:
                 self.released |= over
-            return np.concatenate((check(payload), self.held(half)))
+            out[:frames] = check(payload)
+            self.held(half)
+            return out
         return both
 
     def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
@@ -795,7 +803,7 @@ class HalfwayHold:
         to frames), and at most :attr:`factor` times its frame budgets. A track without
         half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
         changed: list[int] = []
-        over = self.held(half_errors) > self.tolerance[None, :]
+        over = self.held(half_errors) > self.tolerance[None, :]  # (zeroed in place)
         if not over.any():
             return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across

@@ -6,6 +6,7 @@ One pass over the nodes in parent-first order; every step works on all frames at
 from __future__ import annotations
 
 import weakref
+from typing import Iterator
 
 import numpy as np
 
@@ -143,38 +144,61 @@ HALFWAY_CHUNK = 8192
 def halfway_positions(motion: Motion) -> np.ndarray:
     """World positions ``(F-1, N, 3)`` of the original half-way between consecutive frames:
     local rotations by slerp at one half (the normalised sum of the two quaternions on one
-    hemisphere), translations and scales averaged, then forward kinematics; a run of
-    :data:`HALFWAY_CHUNK` intervals at a time, so a long clip's temporaries stay small (each
-    frame's numbers are the same as whole)."""
+    hemisphere), translations and scales averaged, then forward kinematics; built a run of
+    intervals at a time (:func:`halfway_chunks`), so a long clip's temporaries stay small."""
+    out = np.empty((motion.frame_count - 1, motion.rotations.shape[1], 3))
+    for rows, pos in halfway_chunks(motion):
+        out[rows] = pos
+    return out
+
+
+def halfway_chunks(motion: Motion, chunk: int = HALFWAY_CHUNK) -> Iterator[tuple[slice, np.ndarray]]:
+    """:func:`halfway_positions` a run of ``chunk`` intervals at a time, ``(rows, positions)``
+    (each interval's numbers do not depend on the run it is in): for a check that needs
+    them once per repair round, so that a long clip's are never held whole."""
     intervals = motion.frame_count - 1
-    out = np.empty((intervals, motion.rotations.shape[1], 3))
-    for start in range(0, intervals, HALFWAY_CHUNK):
-        stop = min(start + HALFWAY_CHUNK, intervals)
+    scales = motion.scales
+    rest_scales = scales.ndim == 3 and scales.strides[0] == 0  # one row broadcast: its own mean
+    for start in range(0, intervals, chunk):
+        stop = min(start + chunk, intervals)
         a, b = slice(start, stop), slice(start + 1, stop + 1)
         q0, q1 = motion.rotations[a], motion.rotations[b]
         dot = np.sum(q0 * q1, axis=-1, keepdims=True)
         rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
         rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
         trans = 0.5 * (motion.translations[a] + motion.translations[b])
-        scale = 0.5 * (motion.scales[a] + motion.scales[b])
-        out[a] = forward_kinematics(motion.skeleton, rot, trans, scale)[1]
-    return out
+        if rest_scales:  # 0.5 (s + s) is s: a broadcast row, which forward kinematics skips at 1
+            scale = np.broadcast_to(0.5 * (scales[0] + scales[0]), trans.shape)
+        else:
+            scale = 0.5 * (scales[a] + scales[b])
+        yield a, forward_kinematics(motion.skeleton, rot, trans, scale)[1]
 
 
 def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per interval between frames, the largest point step ``(F-1,)`` (file units) of the
     world positions ``world`` (F, N, 3) and the largest local joint turn ``(F-1,)`` (degrees)."""
-    step, turn = interval_motion_per_node(motion, world)
-    return step.max(axis=1), turn.max(axis=1)
+    intervals = max(motion.frame_count - 1, 0)
+    step, turn = np.empty(intervals), np.empty(intervals)
+    for start in range(0, intervals, HALFWAY_CHUNK):  # per node (F-1, N) only a run at a time
+        rows = slice(start, min(start + HALFWAY_CHUNK, intervals))
+        s, t = _steps_and_turns(motion.rotations[start:rows.stop + 1], world[start:rows.stop + 1])
+        step[rows], turn[rows] = s.max(axis=1), t.max(axis=1)
+    return step, turn
 
 
 def interval_motion_per_node(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`interval_motion` per node: every point's step ``(F-1, N)`` and every node's
     local turn ``(F-1, N)`` between consecutive frames."""
+    return _steps_and_turns(motion.rotations, world)
+
+
+def _steps_and_turns(rotations: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`interval_motion_per_node` of local ``rotations`` (F, N, 4) and world positions
+    ``world`` (F, N, 3)."""
     step = np.linalg.norm(world[1:] - world[:-1], axis=-1)
     # The angle from the dot product: imprecise near 0 degrees, exact enough at the glitch
     # thresholds (6e-13 degrees from quat_angle over 10 degrees on CMU 01_03), a tenth of its time.
-    dot = np.abs(np.einsum("fnk,fnk->fn", motion.rotations[:-1], motion.rotations[1:]))
+    dot = np.abs(np.einsum("fnk,fnk->fn", rotations[:-1], rotations[1:]))
     turn = np.degrees(2.0 * np.arccos(np.minimum(dot, 1.0)))
     return step, turn
 

@@ -2,7 +2,7 @@
 encoder decodes, so every error it reports is what an engine will see."""
 from __future__ import annotations
 
-from typing import Iterator
+from typing import Iterable, Iterator
 
 import numpy as np
 
@@ -58,4 +58,17 @@ def world_error(asset: "Asset", clip: int | str, reference: np.ndarray, offset: 
     out = np.empty(reference.shape[:2])
     for rows, _, pos in sample_chunks(asset, clip, frames):
         out[rows] = np.linalg.norm(pos - reference[rows], axis=-1)
+    return out
+
+
+def world_error_chunks(asset: "Asset", clip: int | str, reference: Iterable[tuple[slice, np.ndarray]],
+                       shape: tuple[int, int], offset: float = 0.0) -> np.ndarray:
+    """:func:`world_error` against a reference given a run of frames at a time, ``(rows,
+    positions)`` covering ``shape`` (F, N) in order: the same numbers, without the reference
+    held whole."""
+    out = np.empty(shape)
+    for rows, ref in reference:
+        frames = np.arange(rows.start, rows.stop, dtype=np.float64) + offset
+        _, pos = asset.sample_frames(clip, frames, world=True)
+        out[rows] = np.linalg.norm(pos - ref, axis=-1)
     return out

@@ -161,9 +161,28 @@ def budget_multipliers(ratio: np.ndarray, failing: np.ndarray, affects: np.ndarr
 
 
 # --------------------------------------------------------------------------- meeting it
-def within(errors_units: np.ndarray, tolerance_units: np.ndarray) -> bool:
-    """True when every error is within its tolerance (``tolerance_units`` (N,) per node, or
-    (F, N) per frame and node)."""
+@dataclass
+class RowTolerance:
+    """A tolerance per node on the first ``rows`` rows of an error array and another on the
+    rest (the frames, then half-way between them): what a stacked (R, N) array would say,
+    without its R x N numbers."""
+
+    head: np.ndarray
+    rows: int
+    tail: np.ndarray
+
+    def ratio_max(self, errors_units: np.ndarray) -> float:
+        """The largest error over its tolerance."""
+        return max(float(np.max(errors_units[:self.rows] / self.head)),
+                   float(np.max(errors_units[self.rows:] / self.tail)))
+
+
+def within(errors_units: np.ndarray, tolerance_units: "np.ndarray | RowTolerance") -> bool:
+    """True when every error is within its tolerance (``tolerance_units`` (N,) per node,
+    (F, N) per frame and node, or a :class:`RowTolerance`)."""
+    if isinstance(tolerance_units, RowTolerance):
+        t = tolerance_units
+        return bool(np.all(errors_units[:t.rows] <= t.head)) and bool(np.all(errors_units[t.rows:] <= t.tail))
     return bool(np.all(errors_units <= tolerance_units))
 
 
@@ -177,12 +196,14 @@ class Attempt:
     adjustments: int
     met: bool
 
-    def worst(self, tolerance_units: np.ndarray) -> float:
+    def worst(self, tolerance_units: "np.ndarray | RowTolerance") -> float:
         """The largest ratio of error to tolerance."""
+        if isinstance(tolerance_units, RowTolerance):
+            return tolerance_units.ratio_max(self.errors_units)
         return float(np.max(self.errors_units / tolerance_units))
 
 
-def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units: np.ndarray,
+def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units: "np.ndarray | RowTolerance",
                    adjust: Callable[[np.ndarray], object], rounds: int) -> Attempt:
     """Code, check through the runtime, adjust where the error is over, until it is not.
 
