@@ -288,10 +288,15 @@ def _constant_value(track: Track) -> np.ndarray:
     return track.ref  # exactly what the runtime expands the stored codes to
 
 
-def halfway_target(track: Track) -> np.ndarray:
+def halfway_target(track: Track, at: np.ndarray | None = None) -> np.ndarray:
     """A track's target half-way between frames (F-1, 4 | 3): rotations by slerp at one half
-    (the normalised sum on one hemisphere), translations and scales by their mean."""
-    a, b = track.target[:-1], track.target[1:]
+    (the normalised sum on one hemisphere), translations and scales by their mean; between
+    frames ``at`` and ``at + 1`` only (len(at), 4 | 3) when given (each interval's numbers are
+    its own: a long clip's F-1 are not built for a few)."""
+    if at is None:
+        a, b = track.target[:-1], track.target[1:]
+    else:
+        a, b = track.target[at], track.target[at + 1]
     if track.kind in VECTOR_KINDS:
         return 0.5 * (a + b)
     mid = a + np.where((np.sum(a * b, axis=1) < 0.0)[:, None], -b, b)
@@ -508,11 +513,27 @@ class Compensation:
         """Local rotation (F, 4) that best places node i's aim points given the decoded
         parent rotation (None for a root) and the decoded position of i; on frames ``rows``
         only (parent_rot and pos_i given there) when not None."""
-        frames = slice(None) if rows is None else rows
+        count = self.frames if rows is None else len(rows)
+        world = np.empty((count, 4))
+        # A run of frames at a time (each frame's fit is its own): a long clip's point sets
+        # (F x (aim points + 3) x 3, a few of them) are never whole.
+        for start in range(0, count, TARGET_CHUNK):
+            stop = min(start + TARGET_CHUNK, count)
+            frames = slice(start, stop) if rows is None else rows[start:stop]
+            world[start:stop] = self._aimed(i, frames, pos_i[start:stop])
+        world = R.quat_make_continuous(world)
+        if parent_rot is None:
+            return world
+        return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
+
+
+    def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
+        """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
+        made continuous), its decoded position ``pos_i`` there."""
         orig = self.rot_w[frames, i]
         here = self.pos_w[frames, i]
         aim = self.aim[i]
-        # The aim points (their columns alone: on ``rows``, not every node's), then the shell
+        # The aim points (their columns alone: on ``frames``, not every node's), then the shell
         # vertices; each set rotated in one call.
         there = (np.stack([self.pos_w[frames, c] for c in aim], axis=1) if aim
                  else np.empty((len(orig), 0, 3)))
@@ -521,10 +542,11 @@ class Compensation:
                              np.broadcast_to(shell, (len(orig), 3, 3))), axis=1)
         us = np.concatenate((there - pos_i[:, None], R.quat_rotate(orig[:, None], shell)), axis=1)
         ws = np.array([1.0] * len(aim) + [0.25 if aim else 1.0] * 3)
-        world = R.quat_make_continuous(native.wahba(vs, us, ws, orig))
-        if parent_rot is None:
-            return world
-        return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
+        return native.wahba(vs, us, ws, orig)
+
+
+TARGET_CHUNK = 8192
+"""Frames :meth:`Compensation.rotation_target` fits at a time."""
 
 
 class KeyframeFitter:
@@ -598,7 +620,9 @@ class KeyframeFitter:
             same_parent = prev is not None and not parent_moved
             fits = self._fits
             local_t = self._vector_part(tracks, refit, i, TRANS, sk.offsets[i])
-            if same_parent and self._fits == fits:
+            if not self._has_children[i] and (i, ROT) not in tracks:
+                pos_d[i] = _UNREAD  # an end site's position: no node and no target reads it
+            elif same_parent and self._fits == fits:
                 pos_d[i] = prev[1][i]
             elif p < 0:
                 pos_d[i] = local_t
@@ -676,7 +700,8 @@ class KeyframeFitter:
                 rest = sk.rest_rotations[i]
                 if np.all(q == rest) or np.all(q == -rest):
                     continue  # the rest rotation on every frame: nothing to store
-                t = Track(i, KIND_MRP, np.zeros((self.frames, 3)), None, np.zeros(4), np.zeros(3))
+                # Values and target come with the first pass (_retarget): no F x 3 zeros till then.
+                t = Track(i, KIND_MRP, np.broadcast_to(np.zeros(3), (self.frames, 3)), None, np.zeros(4), np.zeros(3))
             elif part == TRANS:
                 tr = self.motion.translations[:, i]
                 if np.all(tr == f32_exact(sk.offsets[i])):
@@ -840,14 +865,14 @@ def _parameter_flips(track: Track, at: np.ndarray) -> np.ndarray:
     if track.kind in VECTOR_KINDS or not len(at):
         return np.zeros(len(at), dtype=bool)
     mid = _track_error(track).decoded(0.5 * (track.values[at] + track.values[at + 1]))
-    off = R.quat_angle(halfway_target(track)[at], mid)
+    off = R.quat_angle(halfway_target(track, at), mid)
     return off > 0.5 * R.quat_angle(track.target[at], track.target[at + 1]) + 1e-9
 
 
 def _half_errors(track: Track, at: np.ndarray) -> np.ndarray:
     """A fitted track's own error half-way between frames ``at`` and ``at + 1`` (against
     :func:`halfway_target`): angle for rotations, distance for translations and scales."""
-    target = halfway_target(track)[at]
+    target = halfway_target(track, at)
     if track.keys is None:
         recon = np.broadcast_to(track.constant, target.shape)
     else:
@@ -947,7 +972,7 @@ def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     return recon
 
 
-_UNREAD = np.empty((0, 4))  # the decoded rotation of a leaf, which no pass reads
+_UNREAD = np.empty((0, 4))  # the decoded rotation or position of a leaf, which no pass reads
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
