@@ -73,7 +73,10 @@ class RuntimeCheck:
     """``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file
     units (half-way between frames (F - 1, N) with ``halfway``), decoded by the C runtime from a
     one-clip asset. It pickles without its cached world positions, and :meth:`one_clip` is the
-    check of one clip alone, small enough to send to a worker process."""
+    check of one clip alone, small enough to send to a worker process. ``out``: an (F, N) or
+    (F - 1, N) array the errors are written into (a long clip's check allocates none)."""
+
+    fills_out = True
 
     def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
         from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
@@ -84,7 +87,8 @@ class RuntimeCheck:
         self.cm_per_unit, self.codec = list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
 
-    def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
+    def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False,
+                 out: np.ndarray | None = None) -> np.ndarray:
         from .runtime import CHUNK_FRAMES, Asset, world_error, world_error_chunks
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
@@ -92,10 +96,10 @@ class RuntimeCheck:
             # run at a time on every call: a long clip's are never held whole (F x N x 3 float64)
             m = self.motions[i]
             return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
-                                      (m.frame_count - 1, m.skeleton.node_count), 0.5)
+                                      (m.frame_count - 1, m.skeleton.node_count), 0.5, out)
         if i not in self._originals:
             self._originals[i] = motion_world(self.motions[i], shared=True)[1]  # the fitter's own, if it holds it
-        return world_error(asset, 0, self._originals[i])
+        return world_error(asset, 0, self._originals[i], out=out)
 
     def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":
         """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
@@ -110,8 +114,9 @@ class RuntimeCheck:
 
 @dataclass
 class OneClipCheck:
-    """``check(payload, halfway=False)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
+    """``check(payload, halfway=False, out=None)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
 
+    fills_out = True
     runtime: RuntimeCheck
     prefix: bytes = b""
 

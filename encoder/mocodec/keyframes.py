@@ -30,7 +30,7 @@ from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
 from .tolerance import (ClipCheck, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
-                        budget_multipliers, initial_budgets, meet_tolerance, tighten)
+                        budget_multipliers, failing_ratios, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
@@ -583,8 +583,6 @@ class KeyframeFitter:
         self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
         self.mandatory = self.mandatory_keys()
         self._fits = 0
-        self._has_children = np.zeros(motion.skeleton.node_count, dtype=bool)
-        self._has_children[motion.skeleton.parents[motion.skeleton.parents >= 0]] = True
         self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
 
     # -------------------------------------------------------------- passes
@@ -614,13 +612,14 @@ class KeyframeFitter:
         prev = self._decoded
         self._decoded = None
         rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed
+        need_pos, need_rot = self._read_poses(tracks)
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
             same_parent = prev is not None and not parent_moved
             fits = self._fits
             local_t = self._vector_part(tracks, refit, i, TRANS, sk.offsets[i])
-            if not self._has_children[i] and (i, ROT) not in tracks:
+            if not need_pos[i]:
                 pos_d[i] = _UNREAD  # an end site's position: no node and no target reads it
             elif same_parent and self._fits == fits:
                 pos_d[i] = prev[1][i]
@@ -647,7 +646,7 @@ class KeyframeFitter:
                 elif key in refit or parent_moved or t.target is None:
                     _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
                     self._fit(t)
-            if not self._has_children[i]:  # no node reads a leaf's decoded rotation
+            if not need_rot[i]:  # no node reads it (a leaf's, or a node's above end sites alone)
                 rot_d[i] = _UNREAD
             elif same_parent and self._fits == fits:
                 rot_d[i] = prev[0][i]
@@ -666,11 +665,26 @@ class KeyframeFitter:
                 scale_d[i] = local_s if p < 0 else _product(scale_d[p], local_s)
             moved[i] = prev is None or not (_same(prev[0][i], rot_d[i]) and _same(prev[1][i], pos_d[i])
                                             and _same(prev[2][i], scale_d[i]))
-            if self.local_refits and prev is not None and moved[i] and self._has_children[i]:
+            if self.local_refits and prev is not None and moved[i] and need_rot[i]:
                 rot_moved[:, i] = np.any(prev[0][i] != rot_d[i], axis=1)
             if prev is not None:  # nothing after this node reads its previous pose
                 prev[0][i] = prev[1][i] = prev[2][i] = np.empty(0)
         self._decoded = (rot_d, pos_d, scale_d)
+
+    def _read_poses(self, tracks: dict[tuple[int, int], Track]) -> tuple[np.ndarray, np.ndarray]:
+        """Which nodes' decoded positions and rotations a pass reads (N,) bool each: a node's
+        position where its rotation track's target or a child's position needs it, its rotation
+        where a child's position does (an end site's position, and the rotation of a joint
+        above end sites alone, nothing reads: not held, F x 3 and F x 4 numbers a node)."""
+        sk = self.motion.skeleton
+        need_pos = np.zeros(sk.node_count, dtype=bool)
+        need_rot = np.zeros(sk.node_count, dtype=bool)
+        for i in range(sk.node_count - 1, -1, -1):  # children before parents
+            need_pos[i] |= (i, ROT) in tracks
+            p = sk.parents[i]
+            if p >= 0 and need_pos[i]:
+                need_rot[p] = need_pos[p] = True
+        return need_pos, need_rot
 
     def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
                      part: int, rest: np.ndarray) -> np.ndarray:
@@ -726,11 +740,12 @@ class KeyframeFitter:
         self._fit_pass(tracks, set(order))
         frames = self.frames
 
-        def repair(errors: np.ndarray) -> None:
+        def repair(errors: np.ndarray) -> Callable[[], None]:
             changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
             if half is not None:
                 changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
-            self._fit_pass(tracks, {order[c] for c in changed})
+            refit = {order[c] for c in changed}
+            return lambda: self._fit_pass(tracks, refit)  # run by meet_tolerance once the errors are gone
 
         tolerance = self.tol_units if half is None else half.stacked(self.tol_units)
         attempt = meet_tolerance(lambda: self.payload(list(tracks.values())),
@@ -807,16 +822,23 @@ class HalfwayHold:
             # at once), not the two, their held copies and their concatenation.
             out = np.empty((2 * frames - 1, len(self.tolerance)))
             half = out[frames:]
-            half[...] = check(payload, halfway=True)
+            if fills:  # written in place (encode.RuntimeCheck), else copied
+                check(payload, halfway=True, out=half)
+            else:
+                half[...] = check(payload, halfway=True)
             self.held(half)
             over = np.any(half > self.tolerance[None, :], axis=1)
             self.fails += over
             self.released |= self.fails > self.RELEASE_AFTER
             if self.rounds > self.HOLD_ROUNDS:
                 self.released |= over
-            out[:frames] = check(payload)
+            if fills:
+                check(payload, out=out[:frames])
+            else:
+                out[:frames] = check(payload)
             self.held(half)
             return out
+        fills = getattr(check, "fills_out", False)
         return both
 
     def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
@@ -837,12 +859,12 @@ class HalfwayHold:
                 flips = at[_parameter_flips(t, at)]
                 self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
         errors = self.held(half_errors)
-        ratio = self.tolerance[None, :] / np.maximum(errors, 1e-30)
-        failing = ratio < 1.0
-        if not failing.any():
+        rows, ratio = failing_ratios(errors, self.tolerance)
+        if not len(rows):
             return changed
+        failing = ratio < 1.0
         for k, t in enumerate(tracks):
-            spread = budget_multipliers(ratio, failing, reach.affects[k], factor, 1)
+            spread = budget_multipliers(ratio, failing, reach.affects[k], factor, 1, rows, len(errors))
             if spread is None:
                 continue
             at = np.flatnonzero((spread < 1.0) & self.smooth)
