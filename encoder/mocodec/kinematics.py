@@ -27,8 +27,8 @@ def forward_kinematics(
     non-uniform scale above a rotated child this differs from a glTF matrix product (which
     would shear); the positions of the nodes are the same wherever the scale is uniform.
     """
-    rotations = as_node_major(rotations)  # one copy, then every node's rows are contiguous
-    translations = as_node_major(translations)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    translations = np.asarray(translations, dtype=np.float64)
     world_rot = node_major(rotations.shape)
     world_pos = node_major(translations.shape)
     world_scale = None
@@ -37,25 +37,34 @@ def forward_kinematics(
         if scales.strides[0] == 0 and np.all(scales[0] == 1.0):
             scales = None  # the rest scales of a clip without scales: x 1 changes no number
     if scales is not None:
-        scales = as_node_major(scales)
         world_scale = node_major(translations.shape)
     for i, p in enumerate(skeleton.parents):
+        # Each node's inputs made contiguous one node at a time (the same numbers), not the
+        # whole clip's copied node-major at once: a long clip's copies stay one node's.
+        rot_i, trans_i = _node_rows(rotations, i), _node_rows(translations, i)
         if p < 0:
-            world_rot[:, i] = rotations[:, i]
-            world_pos[:, i] = translations[:, i]
+            world_rot[:, i] = rot_i
+            world_pos[:, i] = trans_i
             if world_scale is not None:
-                world_scale[:, i] = scales[:, i]
+                world_scale[:, i] = _node_rows(scales, i)
         else:
-            world_rot[:, i] = quat_multiply(world_rot[:, p], rotations[:, i])
-            t = translations[:, i] if world_scale is None else world_scale[:, p] * translations[:, i]
+            world_rot[:, i] = quat_multiply(world_rot[:, p], rot_i)
+            t = trans_i if world_scale is None else world_scale[:, p] * trans_i
             world_pos[:, i] = world_pos[:, p] + quat_rotate(world_rot[:, p], t)
             if world_scale is not None:
-                world_scale[:, i] = world_scale[:, p] * scales[:, i]
+                world_scale[:, i] = world_scale[:, p] * _node_rows(scales, i)
     if world_scales:
         if world_scale is None:
             world_scale = np.ones_like(translations)
         return world_rot, world_pos, world_scale
     return world_rot, world_pos
+
+
+def _node_rows(a: np.ndarray, i: int) -> np.ndarray:
+    """Node ``i``'s rows ``a[:, i]`` of an (F, N, d) array, contiguous (copied when they are
+    not; a row broadcast over the frames stays a view)."""
+    rows = a[:, i]
+    return rows if rows.strides[0] == 0 else np.ascontiguousarray(rows)
 
 
 def node_major(shape: tuple[int, ...]) -> np.ndarray:
@@ -64,16 +73,6 @@ def node_major(shape: tuple[int, ...]) -> np.ndarray:
     if len(shape) != 3:
         return np.empty(shape)
     return np.empty((shape[1], shape[0], shape[2])).transpose(1, 0, 2)
-
-
-def as_node_major(a: np.ndarray) -> np.ndarray:
-    """``a`` (F, N, d) as float64 held node after node (:func:`node_major`), copied if it is not."""
-    a = np.asarray(a, dtype=np.float64)
-    if a.ndim != 3 or a.transpose(1, 0, 2).flags.c_contiguous:
-        return a
-    out = node_major(a.shape)
-    out[...] = a
-    return out
 
 
 def motion_world(motion: Motion, shared: bool = False) -> tuple[np.ndarray, np.ndarray]:
