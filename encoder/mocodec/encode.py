@@ -14,7 +14,7 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import halfway_chunks, motion_world
+from .kinematics import halfway_chunks, motion_world, shared_world_positions
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -98,7 +98,7 @@ class RuntimeCheck:
             return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
                                       (m.frame_count - 1, m.skeleton.node_count), 0.5, out)
         if i not in self._originals:
-            self._originals[i] = motion_world(self.motions[i], shared=True)[1]  # the fitter's own, if it holds it
+            self._originals[i] = shared_world_positions(self.motions[i])  # the fitter's own, if it holds it
         return world_error(asset, 0, self._originals[i], out=out)
 
     def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":

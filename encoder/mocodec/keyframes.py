@@ -25,7 +25,7 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import held_intervals, interval_motion, motion_world
+from .kinematics import held_intervals, interval_motion, shared_world_positions
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -440,7 +440,10 @@ class Compensation:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.rot_w, self.pos_w = motion_world(motion, shared=True)  # the runtime check's originals too
+        self.pos_w = shared_world_positions(motion)  # the runtime check's originals too
+        # World rotations are not held (F x N x 4 float64): each target builds its node's from
+        # the local rotations along its chain (_world_rotation), as forward kinematics does.
+        self.chains = [self._chain(i) for i in range(sk.node_count)]
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
@@ -530,7 +533,7 @@ class Compensation:
     def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
         """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
         made continuous), its decoded position ``pos_i`` there."""
-        orig = self.rot_w[frames, i]
+        orig = self._world_rotation(i, frames)
         here = self.pos_w[frames, i]
         aim = self.aim[i]
         # The aim points (their columns alone: on ``frames``, not every node's), then the shell
@@ -543,6 +546,25 @@ class Compensation:
         us = np.concatenate((there - pos_i[:, None], R.quat_rotate(orig[:, None], shell)), axis=1)
         ws = np.array([1.0] * len(aim) + [0.25 if aim else 1.0] * 3)
         return native.wahba(vs, us, ws, orig)
+
+
+    def _chain(self, i: int) -> list[int]:
+        """Node i's ancestors from its root down, then i."""
+        chain = [i]
+        while self.motion.skeleton.parents[chain[-1]] >= 0:
+            chain.append(int(self.motion.skeleton.parents[chain[-1]]))
+        return chain[::-1]
+
+    def _world_rotation(self, i: int, frames: slice | np.ndarray) -> np.ndarray:
+        """The original world rotation of node i on ``frames`` (n, 4): its chain's local
+        rotations multiplied from the root down, the products forward kinematics makes (the
+        same numbers)."""
+        rotations = self.motion.rotations
+        chain = self.chains[i]
+        world = np.array(rotations[frames, chain[0]], dtype=np.float64)
+        for a in chain[1:]:
+            world = R.quat_multiply(world, rotations[frames, a])
+        return world
 
 
 TARGET_CHUNK = 8192

@@ -75,33 +75,33 @@ def node_major(shape: tuple[int, ...]) -> np.ndarray:
     return np.empty((shape[1], shape[0], shape[2])).transpose(1, 0, 2)
 
 
-def motion_world(motion: Motion, shared: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` of a motion, its scales
-    composed.
+    composed."""
+    return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
 
-    ``shared``: read-only arrays, the same ones for every caller that asks while some caller
-    still holds them (the key-frame fitter's compensation and the encoder's runtime check of a
-    clip both need its world pose: one copy of a long clip's, not two)."""
-    if not shared:
-        return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
+
+def shared_world_positions(motion: Motion) -> np.ndarray:
+    """World positions ``(F, N, 3)`` of a motion as a read-only array, the same one for every
+    caller that asks while some caller still holds it (the key-frame fitter's compensation and
+    the encoder's runtime check of a clip both need it: one copy of a long clip's, not two)."""
     inputs = (motion.rotations, motion.translations, motion.scales)
     held = _SHARED_WORLD.get(id(motion))
     if held is not None:
-        owner, sources, rot_ref, pos_ref = held
-        rot, pos = rot_ref(), pos_ref()
-        if (owner() is motion and all(r() is a for r, a in zip(sources, inputs))
-                and rot is not None and pos is not None):
-            return rot, pos
-    rot, pos = forward_kinematics(motion.skeleton, *inputs)
-    rot.flags.writeable = pos.flags.writeable = False
+        owner, sources, pos_ref = held
+        pos = pos_ref()
+        if owner() is motion and all(r() is a for r, a in zip(sources, inputs)) and pos is not None:
+            return pos
+    pos = forward_kinematics(motion.skeleton, *inputs)[1]
+    pos.flags.writeable = False
     key = id(motion)
     _SHARED_WORLD[key] = (weakref.ref(motion, lambda _, k=key: _SHARED_WORLD.pop(k, None)),
-                          tuple(weakref.ref(a) for a in inputs), weakref.ref(rot), weakref.ref(pos))
-    return rot, pos
+                          tuple(weakref.ref(a) for a in inputs), weakref.ref(pos))
+    return pos
 
 
-# id(motion) -> weak references to it, to the arrays its world pose was computed from, and to
-# that pose: kept only while someone else holds the pose (motion_world(shared=True)).
+# id(motion) -> weak references to it, to the arrays its world positions were computed from,
+# and to those positions: kept only while someone else holds them (shared_world_positions).
 _SHARED_WORLD: dict[int, tuple] = {}
 
 
