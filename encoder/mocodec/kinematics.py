@@ -92,13 +92,19 @@ def shared_world_positions(motion: Motion) -> np.ndarray:
         pos = pos_ref()
         if owner() is motion and all(r() is a for r, a in zip(sources, inputs)) and pos is not None:
             return pos
-    pos = forward_kinematics(motion.skeleton, *inputs)[1]
+    pos = node_major(motion.translations.shape)
+    for start in range(0, motion.frame_count, POSE_CHUNK):  # the world rotations a run at a time
+        rows = slice(start, start + POSE_CHUNK)
+        pos[rows] = forward_kinematics(motion.skeleton, *(a[rows] for a in inputs))[1]
     pos.flags.writeable = False
     key = id(motion)
     _SHARED_WORLD[key] = (weakref.ref(motion, lambda _, k=key: _SHARED_WORLD.pop(k, None)),
                           tuple(weakref.ref(a) for a in inputs), weakref.ref(pos))
     return pos
 
+
+POSE_CHUNK = 8192
+"""Frames :func:`shared_world_positions` poses at a time."""
 
 # id(motion) -> weak references to it, to the arrays its world positions were computed from,
 # and to those positions: kept only while someone else holds them (shared_world_positions).
