@@ -14,7 +14,8 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import halfway_chunks, motion_world, shared_world_positions
+from .kinematics import (halfway_chunks, halfway_positions, motion_world, shared_world_positions,
+                         short_clip)
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -86,15 +87,20 @@ class RuntimeCheck:
         self.motions = motions if isinstance(motions, Library) else list(motions)
         self.cm_per_unit, self.codec = list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
+        self._halfway: dict[int, np.ndarray] = {}  # a short clip's half-way reference, once asked
 
     def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False,
                  out: np.ndarray | None = None) -> np.ndarray:
         from .runtime import CHUNK_FRAMES, Asset, world_error, world_error_chunks
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
-        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose, built a
-            # run at a time on every call: a long clip's are never held whole (F x N x 3 float64)
+        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose, a long
+            # clip's built a run at a time on every call (never held whole, F x N x 3 float64)
             m = self.motions[i]
+            if short_clip(m):
+                if i not in self._halfway:
+                    self._halfway[i] = halfway_positions(m)
+                return world_error(asset, 0, self._halfway[i], 0.5, out=out)
             return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
                                       (m.frame_count - 1, m.skeleton.node_count), 0.5, out)
         if i not in self._originals:
@@ -109,7 +115,7 @@ class RuntimeCheck:
         return OneClipCheck(RuntimeCheck(one, [self.cm_per_unit[i]], self.codec), prefix)
 
     def __getstate__(self) -> dict[str, Any]:
-        return {**self.__dict__, "_originals": {}}
+        return {**self.__dict__, "_originals": {}, "_halfway": {}}
 
 
 @dataclass

@@ -25,7 +25,8 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import held_intervals, interval_motion, shared_world_positions
+from .kinematics import (held_intervals, interval_motion, shared_world_positions, short_clip,
+                         world_rotations)
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -441,9 +442,11 @@ class Compensation:
         sk = motion.skeleton
         self.frames = motion.frame_count
         self.pos_w = shared_world_positions(motion)  # the runtime check's originals too
-        # World rotations are not held (F x N x 4 float64): each target builds its node's from
-        # the local rotations along its chain (_world_rotation), as forward kinematics does.
+        # A long clip's world rotations are not held (F x N x 4 float64): each target builds its
+        # node's from the local rotations along its chain (_world_rotation), as forward
+        # kinematics does; a short clip's are computed once.
         self.chains = [self._chain(i) for i in range(sk.node_count)]
+        self.rot_w = world_rotations(motion) if short_clip(motion) else None
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
@@ -559,6 +562,8 @@ class Compensation:
         """The original world rotation of node i on ``frames`` (n, 4): its chain's local
         rotations multiplied from the root down, the products forward kinematics makes (the
         same numbers)."""
+        if self.rot_w is not None:
+            return self.rot_w[frames, i]
         rotations = self.motion.rotations
         chain = self.chains[i]
         world = np.array(rotations[frames, chain[0]], dtype=np.float64)

@@ -106,6 +106,27 @@ def shared_world_positions(motion: Motion) -> np.ndarray:
 POSE_CHUNK = 8192
 """Frames :func:`shared_world_positions` poses at a time."""
 
+SHORT_CLIP_BYTES = 16 << 20
+"""A clip whose world rotations (F x N x 4 float64) take at most this many bytes (about 13,000
+frames of a 38-node skeleton; every dev clip) keeps its world rotations and half-way reference
+whole, computed once, rather than rebuilt where they are read: the same numbers, faster."""
+
+
+def short_clip(motion: Motion) -> bool:
+    """Whether ``motion`` is short enough to hold its whole-clip poses (:data:`SHORT_CLIP_BYTES`)."""
+    return motion.frame_count * motion.skeleton.node_count * 32 <= SHORT_CLIP_BYTES
+
+
+def world_rotations(motion: Motion) -> np.ndarray:
+    """World rotations ``(F, N, 4)`` of a motion: :func:`forward_kinematics`' own products,
+    without the positions."""
+    rotations = np.asarray(motion.rotations, dtype=np.float64)
+    out = node_major(rotations.shape)
+    for i, p in enumerate(motion.skeleton.parents):
+        rot_i = _node_rows(rotations, i)
+        out[:, i] = rot_i if p < 0 else quat_multiply(out[:, p], rot_i)
+    return out
+
 # id(motion) -> weak references to it, to the arrays its world positions were computed from,
 # and to those positions: kept only while someone else holds them (shared_world_positions).
 _SHARED_WORLD: dict[int, tuple] = {}
