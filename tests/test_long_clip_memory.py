@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import tracemalloc
 
+import pytest
 from long_clip import CM_PER_UNIT, long_clip
 
 from mocodec.encode import encode_motions
@@ -36,3 +37,29 @@ def test_rma_encode_of_a_long_clip_allocates_a_bounded_multiple_of_its_raw_data(
         tracemalloc.stop()
     assert result.clips[0].error.max_cm <= 1.0
     assert peak / raw <= MAX_PEAK_OVER_RAW, f"peak {peak / 1e6:.0f} MB = {peak / raw:.1f}x the raw float32 channels"
+
+
+@pytest.mark.parametrize("codec", ["rma", "spline"])
+def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, monkeypatch, codec):
+    """A long clip's encode streams what a short one holds whole (world rotations, the half-way
+    reference) and works a run of frames at a time; forced onto that path with runs of 97
+    frames, a sample clip's asset is the same bytes."""
+    import mocodec.curves
+    import mocodec.keyframes
+    import mocodec.kinematics
+    import mocodec.quantize
+    import mocodec.runtime
+    import mocodec.tolerance
+    from mocodec.io import read_bvh
+
+    m = read_bvh(sample_paths[0])
+    units = [resolve_units(m.skeleton, "cmu")]
+    short = encode_motions([m], units, codec, Tolerance(1.0)).asset
+    monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
+    for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
+                         (mocodec.kinematics, "HALFWAY_CHUNK"), (mocodec.kinematics, "POSE_CHUNK"),
+                         (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),
+                         (mocodec.tolerance, "RATIO_CHUNK")]:
+        monkeypatch.setattr(module, name, 97)
+    assert not mocodec.kinematics.short_clip(m) and m.frame_count > 3 * 97
+    assert encode_motions([m], units, codec, Tolerance(1.0)).asset == short
