@@ -532,7 +532,6 @@ class Compensation:
             return world
         return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
 
-
     def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
         """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
         made continuous), its decoded position ``pos_i`` there."""
@@ -549,7 +548,6 @@ class Compensation:
         us = np.concatenate((there - pos_i[:, None], R.quat_rotate(orig[:, None], shell)), axis=1)
         ws = np.array([1.0] * len(aim) + [0.25 if aim else 1.0] * 3)
         return native.wahba(vs, us, ws, orig)
-
 
     def _chain(self, i: int) -> list[int]:
         """Node i's ancestors from its root down, then i."""
@@ -742,7 +740,8 @@ class KeyframeFitter:
                 if np.all(q == rest) or np.all(q == -rest):
                     continue  # the rest rotation on every frame: nothing to store
                 # Values and target come with the first pass (_retarget): no F x 3 zeros till then.
-                t = Track(i, KIND_MRP, np.broadcast_to(np.zeros(3), (self.frames, 3)), None, np.zeros(4), np.zeros(3))
+                t = Track(i, KIND_MRP, np.broadcast_to(np.zeros(3), (self.frames, 3)), None, np.zeros(4),
+                          np.zeros(3))
             elif part == TRANS:
                 tr = self.motion.translations[:, i]
                 if np.all(tr == f32_exact(sk.offsets[i])):

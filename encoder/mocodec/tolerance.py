@@ -232,8 +232,9 @@ def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units:
     codec's current parameters, ``check`` measures it, ``adjust(errors)`` changes the
     parameters where ``errors`` exceed ``tolerance_units`` (it may raise
     :class:`ToleranceNotMet` when it cannot); when it returns a callable, that is called once
-    the errors are let go (so that a refit does not hold a long clip's errors). At most ``rounds`` adjustments; the returned
-    attempt says whether the last payload met the tolerance. What each codec adjusts is its
+    the errors are let go (so that a refit does not hold a long clip's errors). At most
+    ``rounds`` adjustments; the returned attempt says whether the last payload met the
+    tolerance. What each codec adjusts is its
     own: spline and rma tighten per-track budgets and refit keys, fk-wavelet lowers step codes
     (and raises the ROI gain), neural adds weight bits. ik-predict does not refine: it searches
     one step scale for the pass/fail edge, and only shares :func:`within`.
