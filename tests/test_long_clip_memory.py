@@ -1,12 +1,14 @@
 """Memory of a long clip's encode (issue 16: hours-long captures). The encoder's runtime check
-and final evaluation sample a run of frames at a time and the key-frame fitter keeps one decoded
-pose of the clip, so encoding allocates a bounded multiple of the clip's raw float32 channels.
+(the half-way reference too) and final evaluation sample a run of frames at a time and the
+key-frame fitter keeps one decoded pose of the clip, its tracks and the original's world
+positions, so encoding allocates a bounded multiple of the clip's raw float32 channels.
 Counted by tracemalloc (numpy reports its buffers to it), which is exact and does not depend on
 the allocator or the load, unlike the resident size."""
 from __future__ import annotations
 
 import tracemalloc
 
+import pytest
 from long_clip import CM_PER_UNIT, long_clip
 
 from mocodec.encode import encode_motions
@@ -15,10 +17,12 @@ from mocodec.units import resolve_units
 
 FRAMES = 200_000  # 28 minutes at 120 fps, about 3 s to encode
 
-# Allocated at the peak over the raw float32 channels (2026-12-02): 23.7x with the half-way hold
-# (on by default; its reference poses are built a run of intervals at a time), 18.9x without;
-# 32.0x before the check and evaluation were chunked and the fitter's pass held two poses.
-MAX_PEAK_OVER_RAW = 26.0
+# Allocated at the peak over the raw float32 channels (2026-12-04): 8.1x with the half-way hold
+# (on by default), 7.8x without: the half-way reference streamed per check, no world rotations
+# held, curves, targets, roundtrips and poses built a run of frames at a time. Before
+# (2026-12-02): 23.7x with the hold, 18.9x without; 32.0x before the check and evaluation were
+# chunked and the fitter's pass held two poses.
+MAX_PEAK_OVER_RAW = 8.5
 
 
 def test_rma_encode_of_a_long_clip_allocates_a_bounded_multiple_of_its_raw_data():
@@ -33,3 +37,29 @@ def test_rma_encode_of_a_long_clip_allocates_a_bounded_multiple_of_its_raw_data(
         tracemalloc.stop()
     assert result.clips[0].error.max_cm <= 1.0
     assert peak / raw <= MAX_PEAK_OVER_RAW, f"peak {peak / 1e6:.0f} MB = {peak / raw:.1f}x the raw float32 channels"
+
+
+@pytest.mark.parametrize("codec", ["rma", "spline"])
+def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, monkeypatch, codec):
+    """A long clip's encode streams what a short one holds whole (world rotations, the half-way
+    reference) and works a run of frames at a time; forced onto that path with runs of 97
+    frames, a sample clip's asset is the same bytes."""
+    import mocodec.curves
+    import mocodec.keyframes
+    import mocodec.kinematics
+    import mocodec.quantize
+    import mocodec.runtime
+    import mocodec.tolerance
+    from mocodec.io import read_bvh
+
+    m = read_bvh(sample_paths[0])
+    units = [resolve_units(m.skeleton, "cmu")]
+    short = encode_motions([m], units, codec, Tolerance(1.0)).asset
+    monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
+    for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
+                         (mocodec.kinematics, "HALFWAY_CHUNK"), (mocodec.kinematics, "POSE_CHUNK"),
+                         (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),
+                         (mocodec.tolerance, "RATIO_CHUNK")]:
+        monkeypatch.setattr(module, name, 97)
+    assert not mocodec.kinematics.short_clip(m) and m.frame_count > 3 * 97
+    assert encode_motions([m], units, codec, Tolerance(1.0)).asset == short

@@ -40,6 +40,24 @@ def catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray, s
     k = len(key_frames)
     if k == 1:
         return np.broadcast_to(key_values[0], (len(x), key_values.shape[1])).copy()
+    if len(x) <= CURVE_CHUNK:
+        return _catmull_rom(key_frames, key_values, x, split)
+    # A run of positions at a time: a long clip's temporaries (a dozen arrays the size of the
+    # result) stay small, and each position's numbers are its own.
+    out = np.empty((len(x), key_values.shape[1]))
+    for start in range(0, len(x), CURVE_CHUNK):
+        rows = slice(start, start + CURVE_CHUNK)
+        out[rows] = _catmull_rom(key_frames, key_values, x[rows], split)
+    return out
+
+
+CURVE_CHUNK = 8192
+"""Positions :func:`catmull_rom` evaluates at a time."""
+
+
+def _catmull_rom(key_frames: np.ndarray, key_values: np.ndarray, x: np.ndarray, split: bool) -> np.ndarray:
+    """:func:`catmull_rom` of float64 arrays with at least two keys."""
+    k = len(key_frames)
     i1 = np.clip(np.searchsorted(key_frames, x, side="right") - 1, 0, k - 2)
     i0 = np.maximum(i1 - 1, 0)
     i2 = i1 + 1

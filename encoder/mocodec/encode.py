@@ -14,7 +14,8 @@ import numpy as np
 
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
-from .kinematics import halfway_positions, motion_world
+from .kinematics import (halfway_chunks, halfway_positions, motion_world, shared_world_positions,
+                         short_clip)
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -73,7 +74,10 @@ class RuntimeCheck:
     """``check(i, payload, prefix=b"", halfway=False)``: clip ``i``'s world error (F, N) in file
     units (half-way between frames (F - 1, N) with ``halfway``), decoded by the C runtime from a
     one-clip asset. It pickles without its cached world positions, and :meth:`one_clip` is the
-    check of one clip alone, small enough to send to a worker process."""
+    check of one clip alone, small enough to send to a worker process. ``out``: an (F, N) or
+    (F - 1, N) array the errors are written into (a long clip's check allocates none)."""
+
+    fills_out = True
 
     def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
         from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
@@ -83,19 +87,25 @@ class RuntimeCheck:
         self.motions = motions if isinstance(motions, Library) else list(motions)
         self.cm_per_unit, self.codec = list(cm_per_unit), codec
         self._originals: dict[int, np.ndarray] = {}
-        self._halfway: dict[int, np.ndarray] = {}  # computed when a codec first asks
+        self._halfway: dict[int, np.ndarray] = {}  # a short clip's half-way reference, once asked
 
-    def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False) -> np.ndarray:
-        from .runtime import Asset, world_error
+    def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False,
+                 out: np.ndarray | None = None) -> np.ndarray:
+        from .runtime import CHUNK_FRAMES, Asset, world_error, world_error_chunks
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
-        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose
-            if i not in self._halfway:
-                self._halfway[i] = halfway_positions(self.motions[i])
-            return world_error(asset, 0, self._halfway[i], 0.5)
+        if halfway:  # the runtime at x + 1/2 against the original's own half-way pose, a long
+            # clip's built a run at a time on every call (never held whole, F x N x 3 float64)
+            m = self.motions[i]
+            if short_clip(m):
+                if i not in self._halfway:
+                    self._halfway[i] = halfway_positions(m)
+                return world_error(asset, 0, self._halfway[i], 0.5, out=out)
+            return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
+                                      (m.frame_count - 1, m.skeleton.node_count), 0.5, out)
         if i not in self._originals:
-            self._originals[i] = motion_world(self.motions[i], shared=True)[1]  # the fitter's own, if it holds it
-        return world_error(asset, 0, self._originals[i])
+            self._originals[i] = shared_world_positions(self.motions[i])  # the fitter's own, if it holds it
+        return world_error(asset, 0, self._originals[i], out=out)
 
     def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":
         """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
@@ -110,8 +120,9 @@ class RuntimeCheck:
 
 @dataclass
 class OneClipCheck:
-    """``check(payload, halfway=False)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
+    """``check(payload, halfway=False, out=None)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
 
+    fills_out = True
     runtime: RuntimeCheck
     prefix: bytes = b""
 
@@ -127,7 +138,8 @@ def make_check(motions: list[Motion], cm_per_unit: list[float], codec: str) -> c
     """A check function for codecs: payload of clip i -> world error (F, N) in file units,
     decoded by the C runtime from a one-clip asset (:class:`RuntimeCheck`); with ``halfway=True``
     the error half-way between frames (F - 1, N) instead, sampled by the runtime at x + 1/2
-    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_positions`)."""
+    against the original's own half-way pose (:func:`mocodec.kinematics.halfway_positions`, a
+    run at a time)."""
     return RuntimeCheck(motions, cm_per_unit, codec)
 
 

@@ -25,12 +25,13 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import held_intervals, interval_motion, motion_world
+from .kinematics import (held_intervals, interval_motion, shared_world_positions, short_clip,
+                         world_rotations)
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix, budget_multipliers,
-                        initial_budgets, meet_tolerance, tighten)
+from .tolerance import (ClipCheck, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+                        budget_multipliers, failing_ratios, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
 ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
@@ -196,7 +197,7 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     every = np.arange(len(q) - 1)
     flips = int(np.count_nonzero(_parameter_flips(twist, every)))
     if flips:  # half-way, a jump is a miss (no curve follows slerp across it)
-        swinging = swinging_mrp_track(q, node)
+        swinging = swinging_mrp_track(q, node, ref_codes, ref, rel)
         if 2 * np.count_nonzero(_parameter_flips(swinging, every)) <= flips:
             return swinging
     return twist
@@ -225,17 +226,16 @@ def _twist_track_from(q: np.ndarray, rel: np.ndarray, motion: Motion, node: int)
     return Track(node, KIND_TWIST, values, q, ref, axis, ref_codes=ref_codes, axis_codes=axis_codes)
 
 
-def swinging_mrp_track(q: np.ndarray, node: int) -> Track:
+def swinging_mrp_track(q: np.ndarray, node: int, ref_codes: np.ndarray, ref: np.ndarray,
+                       rel: np.ndarray) -> Track:
     """A plain MRP track (``KIND_MRP``) for continuous local rotations ``q`` (F, 4) that go
     round: each frame's MRPs on the hemisphere of the frame before, until the rotation has gone
     past 180 degrees from the reference and on to where |p| would pass
     :data:`SWING_MRP_SWITCH`; the parameters then change hemisphere (a jump, not of the
     rotation) on the interval of that excursion where the rotation turns fastest, where a
-    capture's glitch is, rather than where it moves smoothly."""
-    ref_codes, ref = _reference(R.quat_mean(q))
-    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(np.broadcast_to(ref, q.shape)), q))
-    if np.mean(rel[:, 3]) < 0:
-        rel = -rel
+    capture's glitch is, rather than where it moves smoothly. ``ref_codes``, ``ref`` and
+    ``rel`` are :func:`_rotation_track_from`'s: the reference of ``q`` and ``q`` relative to it,
+    continuous, on the reference's side on average."""
     w = rel[:, 3]
     turn = R.quat_angle(q[:-1], q[1:])
     # |p| = sqrt((1 - w) / (1 + w)) on a frame's side: |p| > 1 where w < 0, > the limit where w < edge.
@@ -289,10 +289,15 @@ def _constant_value(track: Track) -> np.ndarray:
     return track.ref  # exactly what the runtime expands the stored codes to
 
 
-def halfway_target(track: Track) -> np.ndarray:
+def halfway_target(track: Track, at: np.ndarray | None = None) -> np.ndarray:
     """A track's target half-way between frames (F-1, 4 | 3): rotations by slerp at one half
-    (the normalised sum on one hemisphere), translations and scales by their mean."""
-    a, b = track.target[:-1], track.target[1:]
+    (the normalised sum on one hemisphere), translations and scales by their mean; between
+    frames ``at`` and ``at + 1`` only (len(at), 4 | 3) when given (each interval's numbers are
+    its own: a long clip's F-1 are not built for a few)."""
+    if at is None:
+        a, b = track.target[:-1], track.target[1:]
+    else:
+        a, b = track.target[at], track.target[at + 1]
     if track.kind in VECTOR_KINDS:
         return 0.5 * (a + b)
     mid = a + np.where((np.sum(a * b, axis=1) < 0.0)[:, None], -b, b)
@@ -436,7 +441,12 @@ class Compensation:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.rot_w, self.pos_w = motion_world(motion, shared=True)  # the runtime check's originals too
+        self.pos_w = shared_world_positions(motion)  # the runtime check's originals too
+        # A long clip's world rotations are not held (F x N x 4 float64): each target builds its
+        # node's from the local rotations along its chain (_world_rotation), as forward
+        # kinematics does; a short clip's are computed once.
+        self.chains = [self._chain(i) for i in range(sk.node_count)]
+        self.rot_w = world_rotations(motion) if short_clip(motion) else None
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
@@ -509,11 +519,26 @@ class Compensation:
         """Local rotation (F, 4) that best places node i's aim points given the decoded
         parent rotation (None for a root) and the decoded position of i; on frames ``rows``
         only (parent_rot and pos_i given there) when not None."""
-        frames = slice(None) if rows is None else rows
-        orig = self.rot_w[frames, i]
+        count = self.frames if rows is None else len(rows)
+        world = np.empty((count, 4))
+        # A run of frames at a time (each frame's fit is its own): a long clip's point sets
+        # (F x (aim points + 3) x 3, a few of them) are never whole.
+        for start in range(0, count, TARGET_CHUNK):
+            stop = min(start + TARGET_CHUNK, count)
+            frames = slice(start, stop) if rows is None else rows[start:stop]
+            world[start:stop] = self._aimed(i, frames, pos_i[start:stop])
+        world = R.quat_make_continuous(world)
+        if parent_rot is None:
+            return world
+        return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
+
+    def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
+        """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
+        made continuous), its decoded position ``pos_i`` there."""
+        orig = self._world_rotation(i, frames)
         here = self.pos_w[frames, i]
         aim = self.aim[i]
-        # The aim points (their columns alone: on ``rows``, not every node's), then the shell
+        # The aim points (their columns alone: on ``frames``, not every node's), then the shell
         # vertices; each set rotated in one call.
         there = (np.stack([self.pos_w[frames, c] for c in aim], axis=1) if aim
                  else np.empty((len(orig), 0, 3)))
@@ -522,10 +547,31 @@ class Compensation:
                              np.broadcast_to(shell, (len(orig), 3, 3))), axis=1)
         us = np.concatenate((there - pos_i[:, None], R.quat_rotate(orig[:, None], shell)), axis=1)
         ws = np.array([1.0] * len(aim) + [0.25 if aim else 1.0] * 3)
-        world = R.quat_make_continuous(native.wahba(vs, us, ws, orig))
-        if parent_rot is None:
-            return world
-        return R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(parent_rot), world))
+        return native.wahba(vs, us, ws, orig)
+
+    def _chain(self, i: int) -> list[int]:
+        """Node i's ancestors from its root down, then i."""
+        chain = [i]
+        while self.motion.skeleton.parents[chain[-1]] >= 0:
+            chain.append(int(self.motion.skeleton.parents[chain[-1]]))
+        return chain[::-1]
+
+    def _world_rotation(self, i: int, frames: slice | np.ndarray) -> np.ndarray:
+        """The original world rotation of node i on ``frames`` (n, 4): its chain's local
+        rotations multiplied from the root down, the products forward kinematics makes (the
+        same numbers)."""
+        if self.rot_w is not None:
+            return self.rot_w[frames, i]
+        rotations = self.motion.rotations
+        chain = self.chains[i]
+        world = np.array(rotations[frames, chain[0]], dtype=np.float64)
+        for a in chain[1:]:
+            world = R.quat_multiply(world, rotations[frames, a])
+        return world
+
+
+TARGET_CHUNK = 8192
+"""Frames :meth:`Compensation.rotation_target` fits at a time."""
 
 
 class KeyframeFitter:
@@ -562,8 +608,6 @@ class KeyframeFitter:
         self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
         self.mandatory = self.mandatory_keys()
         self._fits = 0
-        self._has_children = np.zeros(motion.skeleton.node_count, dtype=bool)
-        self._has_children[motion.skeleton.parents[motion.skeleton.parents >= 0]] = True
         self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
 
     # -------------------------------------------------------------- passes
@@ -593,13 +637,16 @@ class KeyframeFitter:
         prev = self._decoded
         self._decoded = None
         rot_moved = np.zeros((self.frames, n), dtype=bool)  # frames where a node's decoded rotation changed
+        need_pos, need_rot = self._read_poses(tracks)
         for i in range(n):
             p = sk.parents[i]
             parent_moved = p >= 0 and moved[p]
             same_parent = prev is not None and not parent_moved
             fits = self._fits
             local_t = self._vector_part(tracks, refit, i, TRANS, sk.offsets[i])
-            if same_parent and self._fits == fits:
+            if not need_pos[i]:
+                pos_d[i] = _UNREAD  # an end site's position: no node and no target reads it
+            elif same_parent and self._fits == fits:
                 pos_d[i] = prev[1][i]
             elif p < 0:
                 pos_d[i] = local_t
@@ -624,7 +671,7 @@ class KeyframeFitter:
                 elif key in refit or parent_moved or t.target is None:
                     _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
                     self._fit(t)
-            if not self._has_children[i]:  # no node reads a leaf's decoded rotation
+            if not need_rot[i]:  # no node reads it (a leaf's, or a node's above end sites alone)
                 rot_d[i] = _UNREAD
             elif same_parent and self._fits == fits:
                 rot_d[i] = prev[0][i]
@@ -643,11 +690,26 @@ class KeyframeFitter:
                 scale_d[i] = local_s if p < 0 else _product(scale_d[p], local_s)
             moved[i] = prev is None or not (_same(prev[0][i], rot_d[i]) and _same(prev[1][i], pos_d[i])
                                             and _same(prev[2][i], scale_d[i]))
-            if self.local_refits and prev is not None and moved[i] and self._has_children[i]:
+            if self.local_refits and prev is not None and moved[i] and need_rot[i]:
                 rot_moved[:, i] = np.any(prev[0][i] != rot_d[i], axis=1)
             if prev is not None:  # nothing after this node reads its previous pose
                 prev[0][i] = prev[1][i] = prev[2][i] = np.empty(0)
         self._decoded = (rot_d, pos_d, scale_d)
+
+    def _read_poses(self, tracks: dict[tuple[int, int], Track]) -> tuple[np.ndarray, np.ndarray]:
+        """Which nodes' decoded positions and rotations a pass reads (N,) bool each: a node's
+        position where its rotation track's target or a child's position needs it, its rotation
+        where a child's position does (an end site's position, and the rotation of a joint
+        above end sites alone, nothing reads: not held, F x 3 and F x 4 numbers a node)."""
+        sk = self.motion.skeleton
+        need_pos = np.zeros(sk.node_count, dtype=bool)
+        need_rot = np.zeros(sk.node_count, dtype=bool)
+        for i in range(sk.node_count - 1, -1, -1):  # children before parents
+            need_pos[i] |= (i, ROT) in tracks
+            p = sk.parents[i]
+            if p >= 0 and need_pos[i]:
+                need_rot[p] = need_pos[p] = True
+        return need_pos, need_rot
 
     def _vector_part(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]], node: int,
                      part: int, rest: np.ndarray) -> np.ndarray:
@@ -677,7 +739,9 @@ class KeyframeFitter:
                 rest = sk.rest_rotations[i]
                 if np.all(q == rest) or np.all(q == -rest):
                     continue  # the rest rotation on every frame: nothing to store
-                t = Track(i, KIND_MRP, np.zeros((self.frames, 3)), None, np.zeros(4), np.zeros(3))
+                # Values and target come with the first pass (_retarget): no F x 3 zeros till then.
+                t = Track(i, KIND_MRP, np.broadcast_to(np.zeros(3), (self.frames, 3)), None, np.zeros(4),
+                          np.zeros(3))
             elif part == TRANS:
                 tr = self.motion.translations[:, i]
                 if np.all(tr == f32_exact(sk.offsets[i])):
@@ -702,11 +766,12 @@ class KeyframeFitter:
         self._fit_pass(tracks, set(order))
         frames = self.frames
 
-        def repair(errors: np.ndarray) -> None:
+        def repair(errors: np.ndarray) -> Callable[[], None]:
             changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
             if half is not None:
                 changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
-            self._fit_pass(tracks, {order[c] for c in changed})
+            refit = {order[c] for c in changed}
+            return lambda: self._fit_pass(tracks, refit)  # run by meet_tolerance once the errors are gone
 
         tolerance = self.tol_units if half is None else half.stacked(self.tol_units)
         attempt = meet_tolerance(lambda: self.payload(list(tracks.values())),
@@ -763,14 +828,14 @@ class HalfwayHold:
         self.rounds = 0
 
     def held(self, half_errors: np.ndarray) -> np.ndarray:
-        """Half-way errors (F-1, N) with the intervals not held zeroed."""
-        return np.where((self.smooth & ~self.released)[:, None], half_errors, 0.0)
+        """Half-way errors (F-1, N) with the intervals not held zeroed, in place (the
+        errors are the check's own array): no copy of a long clip's (F-1, N)."""
+        half_errors[~(self.smooth & ~self.released)] = 0.0
+        return half_errors
 
-    def stacked(self, tol_units: np.ndarray) -> np.ndarray:
+    def stacked(self, tol_units: np.ndarray) -> RowTolerance:
         """Per row of :meth:`check`'s errors (2F-1, N): the tolerance on frames, then half-way."""
-        frames = len(self.smooth) + 1
-        return np.concatenate((np.broadcast_to(tol_units, (frames, len(tol_units))),
-                               np.broadcast_to(self.tolerance, (frames - 1, len(tol_units)))))
+        return RowTolerance(tol_units, len(self.smooth) + 1, self.tolerance)
 
     def check(self, check: ClipCheck) -> ClipCheck:
         """``check`` on the frames, then on the held half-way samples (``check(payload,
@@ -778,13 +843,28 @@ class HalfwayHold:
         each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
         def both(payload: bytes) -> np.ndarray:
             self.rounds += 1
-            half = self.held(check(payload, halfway=True))
+            frames = len(self.smooth) + 1
+            # One (2F-1, N) array the two checks are copied into as they come (each is freed
+            # at once), not the two, their held copies and their concatenation.
+            out = np.empty((2 * frames - 1, len(self.tolerance)))
+            half = out[frames:]
+            if fills:  # written in place (encode.RuntimeCheck), else copied
+                check(payload, halfway=True, out=half)
+            else:
+                half[...] = check(payload, halfway=True)
+            self.held(half)
             over = np.any(half > self.tolerance[None, :], axis=1)
             self.fails += over
             self.released |= self.fails > self.RELEASE_AFTER
             if self.rounds > self.HOLD_ROUNDS:
                 self.released |= over
-            return np.concatenate((check(payload), self.held(half)))
+            if fills:
+                check(payload, out=out[:frames])
+            else:
+                out[:frames] = check(payload)
+            self.held(half)
+            return out
+        fills = getattr(check, "fills_out", False)
         return both
 
     def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
@@ -796,7 +876,7 @@ class HalfwayHold:
         to frames), and at most :attr:`factor` times its frame budgets. A track without
         half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
         changed: list[int] = []
-        over = self.held(half_errors) > self.tolerance[None, :]
+        over = self.held(half_errors) > self.tolerance[None, :]  # (zeroed in place)
         if not over.any():
             return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across
@@ -805,12 +885,12 @@ class HalfwayHold:
                 flips = at[_parameter_flips(t, at)]
                 self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
         errors = self.held(half_errors)
-        ratio = self.tolerance[None, :] / np.maximum(errors, 1e-30)
-        failing = ratio < 1.0
-        if not failing.any():
+        rows, ratio = failing_ratios(errors, self.tolerance)
+        if not len(rows):
             return changed
+        failing = ratio < 1.0
         for k, t in enumerate(tracks):
-            spread = budget_multipliers(ratio, failing, reach.affects[k], factor, 1)
+            spread = budget_multipliers(ratio, failing, reach.affects[k], factor, 1, rows, len(errors))
             if spread is None:
                 continue
             at = np.flatnonzero((spread < 1.0) & self.smooth)
@@ -833,14 +913,14 @@ def _parameter_flips(track: Track, at: np.ndarray) -> np.ndarray:
     if track.kind in VECTOR_KINDS or not len(at):
         return np.zeros(len(at), dtype=bool)
     mid = _track_error(track).decoded(0.5 * (track.values[at] + track.values[at + 1]))
-    off = R.quat_angle(halfway_target(track)[at], mid)
+    off = R.quat_angle(halfway_target(track, at), mid)
     return off > 0.5 * R.quat_angle(track.target[at], track.target[at + 1]) + 1e-9
 
 
 def _half_errors(track: Track, at: np.ndarray) -> np.ndarray:
     """A fitted track's own error half-way between frames ``at`` and ``at + 1`` (against
     :func:`halfway_target`): angle for rotations, distance for translations and scales."""
-    target = halfway_target(track)[at]
+    target = halfway_target(track, at)
     if track.keys is None:
         recon = np.broadcast_to(track.constant, target.shape)
     else:
@@ -940,7 +1020,7 @@ def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     return recon
 
 
-_UNREAD = np.empty((0, 4))  # the decoded rotation of a leaf, which no pass reads
+_UNREAD = np.empty((0, 4))  # the decoded rotation or position of a leaf, which no pass reads
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:

@@ -6,6 +6,7 @@ One pass over the nodes in parent-first order; every step works on all frames at
 from __future__ import annotations
 
 import weakref
+from typing import Iterator
 
 import numpy as np
 
@@ -26,8 +27,8 @@ def forward_kinematics(
     non-uniform scale above a rotated child this differs from a glTF matrix product (which
     would shear); the positions of the nodes are the same wherever the scale is uniform.
     """
-    rotations = as_node_major(rotations)  # one copy, then every node's rows are contiguous
-    translations = as_node_major(translations)
+    rotations = np.asarray(rotations, dtype=np.float64)
+    translations = np.asarray(translations, dtype=np.float64)
     world_rot = node_major(rotations.shape)
     world_pos = node_major(translations.shape)
     world_scale = None
@@ -36,25 +37,34 @@ def forward_kinematics(
         if scales.strides[0] == 0 and np.all(scales[0] == 1.0):
             scales = None  # the rest scales of a clip without scales: x 1 changes no number
     if scales is not None:
-        scales = as_node_major(scales)
         world_scale = node_major(translations.shape)
     for i, p in enumerate(skeleton.parents):
+        # Each node's inputs made contiguous one node at a time (the same numbers), not the
+        # whole clip's copied node-major at once: a long clip's copies stay one node's.
+        rot_i, trans_i = _node_rows(rotations, i), _node_rows(translations, i)
         if p < 0:
-            world_rot[:, i] = rotations[:, i]
-            world_pos[:, i] = translations[:, i]
+            world_rot[:, i] = rot_i
+            world_pos[:, i] = trans_i
             if world_scale is not None:
-                world_scale[:, i] = scales[:, i]
+                world_scale[:, i] = _node_rows(scales, i)
         else:
-            world_rot[:, i] = quat_multiply(world_rot[:, p], rotations[:, i])
-            t = translations[:, i] if world_scale is None else world_scale[:, p] * translations[:, i]
+            world_rot[:, i] = quat_multiply(world_rot[:, p], rot_i)
+            t = trans_i if world_scale is None else world_scale[:, p] * trans_i
             world_pos[:, i] = world_pos[:, p] + quat_rotate(world_rot[:, p], t)
             if world_scale is not None:
-                world_scale[:, i] = world_scale[:, p] * scales[:, i]
+                world_scale[:, i] = world_scale[:, p] * _node_rows(scales, i)
     if world_scales:
         if world_scale is None:
             world_scale = np.ones_like(translations)
         return world_rot, world_pos, world_scale
     return world_rot, world_pos
+
+
+def _node_rows(a: np.ndarray, i: int) -> np.ndarray:
+    """Node ``i``'s rows ``a[:, i]`` of an (F, N, d) array, contiguous (copied when they are
+    not; a row broadcast over the frames stays a view)."""
+    rows = a[:, i]
+    return rows if rows.strides[0] == 0 else np.ascontiguousarray(rows)
 
 
 def node_major(shape: tuple[int, ...]) -> np.ndarray:
@@ -65,43 +75,60 @@ def node_major(shape: tuple[int, ...]) -> np.ndarray:
     return np.empty((shape[1], shape[0], shape[2])).transpose(1, 0, 2)
 
 
-def as_node_major(a: np.ndarray) -> np.ndarray:
-    """``a`` (F, N, d) as float64 held node after node (:func:`node_major`), copied if it is not."""
-    a = np.asarray(a, dtype=np.float64)
-    if a.ndim != 3 or a.transpose(1, 0, 2).flags.c_contiguous:
-        return a
-    out = node_major(a.shape)
-    out[...] = a
-    return out
-
-
-def motion_world(motion: Motion, shared: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def motion_world(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """World rotations ``(F, N, 4)`` and positions ``(F, N, 3)`` of a motion, its scales
-    composed.
+    composed."""
+    return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
 
-    ``shared``: read-only arrays, the same ones for every caller that asks while some caller
-    still holds them (the key-frame fitter's compensation and the encoder's runtime check of a
-    clip both need its world pose: one copy of a long clip's, not two)."""
-    if not shared:
-        return forward_kinematics(motion.skeleton, motion.rotations, motion.translations, motion.scales)
+
+def shared_world_positions(motion: Motion) -> np.ndarray:
+    """World positions ``(F, N, 3)`` of a motion as a read-only array, the same one for every
+    caller that asks while some caller still holds it (the key-frame fitter's compensation and
+    the encoder's runtime check of a clip both need it: one copy of a long clip's, not two)."""
     inputs = (motion.rotations, motion.translations, motion.scales)
     held = _SHARED_WORLD.get(id(motion))
     if held is not None:
-        owner, sources, rot_ref, pos_ref = held
-        rot, pos = rot_ref(), pos_ref()
-        if (owner() is motion and all(r() is a for r, a in zip(sources, inputs))
-                and rot is not None and pos is not None):
-            return rot, pos
-    rot, pos = forward_kinematics(motion.skeleton, *inputs)
-    rot.flags.writeable = pos.flags.writeable = False
+        owner, sources, pos_ref = held
+        pos = pos_ref()
+        if owner() is motion and all(r() is a for r, a in zip(sources, inputs)) and pos is not None:
+            return pos
+    pos = node_major(motion.translations.shape)
+    for start in range(0, motion.frame_count, POSE_CHUNK):  # the world rotations a run at a time
+        rows = slice(start, start + POSE_CHUNK)
+        pos[rows] = forward_kinematics(motion.skeleton, *(a[rows] for a in inputs))[1]
+    pos.flags.writeable = False
     key = id(motion)
     _SHARED_WORLD[key] = (weakref.ref(motion, lambda _, k=key: _SHARED_WORLD.pop(k, None)),
-                          tuple(weakref.ref(a) for a in inputs), weakref.ref(rot), weakref.ref(pos))
-    return rot, pos
+                          tuple(weakref.ref(a) for a in inputs), weakref.ref(pos))
+    return pos
 
 
-# id(motion) -> weak references to it, to the arrays its world pose was computed from, and to
-# that pose: kept only while someone else holds the pose (motion_world(shared=True)).
+POSE_CHUNK = 8192
+"""Frames :func:`shared_world_positions` poses at a time."""
+
+SHORT_CLIP_BYTES = 16 << 20
+"""A clip whose world rotations (F x N x 4 float64) take at most this many bytes (about 13,000
+frames of a 38-node skeleton; every dev clip) keeps its world rotations and half-way reference
+whole, computed once, rather than rebuilt where they are read: the same numbers, faster."""
+
+
+def short_clip(motion: Motion) -> bool:
+    """Whether ``motion`` is short enough to hold its whole-clip poses (:data:`SHORT_CLIP_BYTES`)."""
+    return motion.frame_count * motion.skeleton.node_count * 32 <= SHORT_CLIP_BYTES
+
+
+def world_rotations(motion: Motion) -> np.ndarray:
+    """World rotations ``(F, N, 4)`` of a motion: :func:`forward_kinematics`' own products,
+    without the positions."""
+    rotations = np.asarray(motion.rotations, dtype=np.float64)
+    out = node_major(rotations.shape)
+    for i, p in enumerate(motion.skeleton.parents):
+        rot_i = _node_rows(rotations, i)
+        out[:, i] = rot_i if p < 0 else quat_multiply(out[:, p], rot_i)
+    return out
+
+# id(motion) -> weak references to it, to the arrays its world positions were computed from,
+# and to those positions: kept only while someone else holds them (shared_world_positions).
 _SHARED_WORLD: dict[int, tuple] = {}
 
 
@@ -143,38 +170,61 @@ HALFWAY_CHUNK = 8192
 def halfway_positions(motion: Motion) -> np.ndarray:
     """World positions ``(F-1, N, 3)`` of the original half-way between consecutive frames:
     local rotations by slerp at one half (the normalised sum of the two quaternions on one
-    hemisphere), translations and scales averaged, then forward kinematics; a run of
-    :data:`HALFWAY_CHUNK` intervals at a time, so a long clip's temporaries stay small (each
-    frame's numbers are the same as whole)."""
+    hemisphere), translations and scales averaged, then forward kinematics; built a run of
+    intervals at a time (:func:`halfway_chunks`), so a long clip's temporaries stay small."""
+    out = np.empty((motion.frame_count - 1, motion.rotations.shape[1], 3))
+    for rows, pos in halfway_chunks(motion):
+        out[rows] = pos
+    return out
+
+
+def halfway_chunks(motion: Motion, chunk: int = HALFWAY_CHUNK) -> Iterator[tuple[slice, np.ndarray]]:
+    """:func:`halfway_positions` a run of ``chunk`` intervals at a time, ``(rows, positions)``
+    (each interval's numbers do not depend on the run it is in): for a check that needs
+    them once per repair round, so that a long clip's are never held whole."""
     intervals = motion.frame_count - 1
-    out = np.empty((intervals, motion.rotations.shape[1], 3))
-    for start in range(0, intervals, HALFWAY_CHUNK):
-        stop = min(start + HALFWAY_CHUNK, intervals)
+    scales = motion.scales
+    rest_scales = scales.ndim == 3 and scales.strides[0] == 0  # one row broadcast: its own mean
+    for start in range(0, intervals, chunk):
+        stop = min(start + chunk, intervals)
         a, b = slice(start, stop), slice(start + 1, stop + 1)
         q0, q1 = motion.rotations[a], motion.rotations[b]
         dot = np.sum(q0 * q1, axis=-1, keepdims=True)
         rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
         rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
         trans = 0.5 * (motion.translations[a] + motion.translations[b])
-        scale = 0.5 * (motion.scales[a] + motion.scales[b])
-        out[a] = forward_kinematics(motion.skeleton, rot, trans, scale)[1]
-    return out
+        if rest_scales:  # 0.5 (s + s) is s: a broadcast row, which forward kinematics skips at 1
+            scale = np.broadcast_to(0.5 * (scales[0] + scales[0]), trans.shape)
+        else:
+            scale = 0.5 * (scales[a] + scales[b])
+        yield a, forward_kinematics(motion.skeleton, rot, trans, scale)[1]
 
 
 def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per interval between frames, the largest point step ``(F-1,)`` (file units) of the
     world positions ``world`` (F, N, 3) and the largest local joint turn ``(F-1,)`` (degrees)."""
-    step, turn = interval_motion_per_node(motion, world)
-    return step.max(axis=1), turn.max(axis=1)
+    intervals = max(motion.frame_count - 1, 0)
+    step, turn = np.empty(intervals), np.empty(intervals)
+    for start in range(0, intervals, HALFWAY_CHUNK):  # per node (F-1, N) only a run at a time
+        rows = slice(start, min(start + HALFWAY_CHUNK, intervals))
+        s, t = _steps_and_turns(motion.rotations[start:rows.stop + 1], world[start:rows.stop + 1])
+        step[rows], turn[rows] = s.max(axis=1), t.max(axis=1)
+    return step, turn
 
 
 def interval_motion_per_node(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`interval_motion` per node: every point's step ``(F-1, N)`` and every node's
     local turn ``(F-1, N)`` between consecutive frames."""
+    return _steps_and_turns(motion.rotations, world)
+
+
+def _steps_and_turns(rotations: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`interval_motion_per_node` of local ``rotations`` (F, N, 4) and world positions
+    ``world`` (F, N, 3)."""
     step = np.linalg.norm(world[1:] - world[:-1], axis=-1)
     # The angle from the dot product: imprecise near 0 degrees, exact enough at the glitch
     # thresholds (6e-13 degrees from quat_angle over 10 degrees on CMU 01_03), a tenth of its time.
-    dot = np.abs(np.einsum("fnk,fnk->fn", motion.rotations[:-1], motion.rotations[1:]))
+    dot = np.abs(np.einsum("fnk,fnk->fn", rotations[:-1], rotations[1:]))
     turn = np.degrees(2.0 * np.arccos(np.minimum(dot, 1.0)))
     return step, turn
 

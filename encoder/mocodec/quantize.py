@@ -7,11 +7,29 @@ step are rounded to float32 first, because that is what the asset stores and the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 MAX_BITS = 24
 MAX_STEP = 1e7  # the format's bound on every stored number (docs/FORMAT.md)
+
+
+ROUNDTRIP_CHUNK = 8192
+"""Rows a quantizer's roundtrip takes at a time."""
+
+
+def by_rows(f: Callable[[np.ndarray], np.ndarray], v: np.ndarray) -> np.ndarray:
+    """``f(v)`` (float64, v's shape) for a row-by-row ``f``, a run of rows at a time when
+    ``v`` is long: a clip's values roundtrip with temporaries of a run's size, not a clip's
+    (each row's numbers are its own)."""
+    v = np.asarray(v)
+    if len(v) <= ROUNDTRIP_CHUNK:
+        return f(v)
+    out = np.empty(v.shape)
+    for start in range(0, len(v), ROUNDTRIP_CHUNK):
+        out[start:start + ROUNDTRIP_CHUNK] = f(v[start:start + ROUNDTRIP_CHUNK])
+    return out
 
 
 @dataclass
@@ -57,7 +75,7 @@ class Quantizer:
         return (self.minimum.astype(np.float32) + np.asarray(q).astype(np.float32) * self.step.astype(np.float32)).astype(np.float64)
 
     def roundtrip(self, v: np.ndarray) -> np.ndarray:
-        return self.decode(self.encode(v))
+        return by_rows(lambda rows: self.decode(self.encode(rows)), v)
 
 
 @dataclass
@@ -92,4 +110,4 @@ class StepQuantizer:
         return (np.asarray(q, dtype=np.float64) * self.step).astype(np.float32).astype(np.float64)
 
     def roundtrip(self, v: np.ndarray) -> np.ndarray:
-        return self.decode(self.encode(v))
+        return by_rows(lambda rows: self.decode(self.encode(rows)), v)

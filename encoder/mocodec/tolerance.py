@@ -125,14 +125,14 @@ def tighten(
     ``min(factor, 0.95 * tolerance / error)`` on the failing frames and ``radius`` frames
     around them. Returns the indices of the tracks whose budgets changed.
     """
-    ratio = tolerance_units[None, :] / np.maximum(errors_units, 1e-30)  # < 1 where failing
-    failing = ratio < 1.0
-    changed = []
-    if not failing.any():
+    changed: list[int] = []
+    rows, ratio = failing_ratios(errors_units, tolerance_units)
+    if not len(rows):
         return changed
+    failing = ratio < 1.0
     frames = errors_units.shape[0]
     for t, budget in enumerate(budgets):
-        spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius)
+        spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius, rows, frames)
         if spread is None:
             continue
         budget *= spread[:frames]
@@ -140,18 +140,39 @@ def tighten(
     return changed
 
 
+RATIO_CHUNK = 8192
+"""Rows :func:`failing_ratios` looks through at a time."""
+
+
+def failing_ratios(errors_units: np.ndarray, tolerance_units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``errors_units`` (R, N) where some point is over its tolerance (N,) (its
+    ratio tolerance / error under 1), and those rows' ratios: a run of rows at a time, so a long
+    clip's R x N ratios are never whole (few rows fail; each ratio is the same number)."""
+    rows = []
+    for start in range(0, len(errors_units), RATIO_CHUNK):
+        part = tolerance_units[None, :] / np.maximum(errors_units[start:start + RATIO_CHUNK], 1e-30)
+        rows.append(start + np.flatnonzero((part < 1.0).any(axis=1)))
+    at = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+    return at, tolerance_units[None, :] / np.maximum(errors_units[at], 1e-30)
+
+
 def budget_multipliers(ratio: np.ndarray, failing: np.ndarray, affects: np.ndarray, factor: float,
-                       radius: int) -> np.ndarray | None:
+                       radius: int, rows: np.ndarray | None = None, count: int = 0) -> np.ndarray | None:
     """Per row of ``ratio`` (tolerance / error, (R, N)), the multiplier of one track's budget:
     ``min(factor, 0.95 * worst ratio)`` on the rows where a point it moves (``affects`` (N,))
     fails, spread ``radius`` rows each way (smallest wins), 1 elsewhere; None when it moves no
-    failing point."""
+    failing point. With ``rows``, ``ratio`` and ``failing`` are those rows of ``count`` (every
+    other row failing nowhere, :func:`failing_ratios`)."""
     mask = failing & affects[None, :]
-    rows = mask.any(axis=1)
-    if not rows.any():
+    hit = mask.any(axis=1)
+    if not hit.any():
         return None
     worst = np.where(mask, ratio, np.inf).min(axis=1)
-    mult = np.where(rows, np.minimum(factor, 0.95 * worst), 1.0)
+    mult = np.where(hit, np.minimum(factor, 0.95 * worst), 1.0)
+    if rows is not None:
+        whole = np.ones(count)
+        whole[rows] = mult
+        mult = whole
     spread = mult.copy()
     for r in range(1, radius + 1):
         spread[r:] = np.minimum(spread[r:], mult[:-r])
@@ -161,9 +182,28 @@ def budget_multipliers(ratio: np.ndarray, failing: np.ndarray, affects: np.ndarr
 
 
 # --------------------------------------------------------------------------- meeting it
-def within(errors_units: np.ndarray, tolerance_units: np.ndarray) -> bool:
-    """True when every error is within its tolerance (``tolerance_units`` (N,) per node, or
-    (F, N) per frame and node)."""
+@dataclass
+class RowTolerance:
+    """A tolerance per node on the first ``rows`` rows of an error array and another on the
+    rest (the frames, then half-way between them): what a stacked (R, N) array would say,
+    without its R x N numbers."""
+
+    head: np.ndarray
+    rows: int
+    tail: np.ndarray
+
+    def ratio_max(self, errors_units: np.ndarray) -> float:
+        """The largest error over its tolerance."""
+        return max(float(np.max(errors_units[:self.rows] / self.head)),
+                   float(np.max(errors_units[self.rows:] / self.tail)))
+
+
+def within(errors_units: np.ndarray, tolerance_units: "np.ndarray | RowTolerance") -> bool:
+    """True when every error is within its tolerance (``tolerance_units`` (N,) per node,
+    (F, N) per frame and node, or a :class:`RowTolerance`)."""
+    if isinstance(tolerance_units, RowTolerance):
+        t = tolerance_units
+        return bool(np.all(errors_units[:t.rows] <= t.head)) and bool(np.all(errors_units[t.rows:] <= t.tail))
     return bool(np.all(errors_units <= tolerance_units))
 
 
@@ -177,20 +217,24 @@ class Attempt:
     adjustments: int
     met: bool
 
-    def worst(self, tolerance_units: np.ndarray) -> float:
+    def worst(self, tolerance_units: "np.ndarray | RowTolerance") -> float:
         """The largest ratio of error to tolerance."""
+        if isinstance(tolerance_units, RowTolerance):
+            return tolerance_units.ratio_max(self.errors_units)
         return float(np.max(self.errors_units / tolerance_units))
 
 
-def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units: np.ndarray,
+def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units: "np.ndarray | RowTolerance",
                    adjust: Callable[[np.ndarray], object], rounds: int) -> Attempt:
     """Code, check through the runtime, adjust where the error is over, until it is not.
 
     The loop the codecs that refine a coding share: ``code()`` writes the payload from the
     codec's current parameters, ``check`` measures it, ``adjust(errors)`` changes the
     parameters where ``errors`` exceed ``tolerance_units`` (it may raise
-    :class:`ToleranceNotMet` when it cannot). At most ``rounds`` adjustments; the returned
-    attempt says whether the last payload met the tolerance. What each codec adjusts is its
+    :class:`ToleranceNotMet` when it cannot); when it returns a callable, that is called once
+    the errors are let go (so that a refit does not hold a long clip's errors). At most
+    ``rounds`` adjustments; the returned attempt says whether the last payload met the
+    tolerance. What each codec adjusts is its
     own: spline and rma tighten per-track budgets and refit keys, fk-wavelet lowers step codes
     (and raises the ROI gain), neural adds weight bits. ik-predict does not refine: it searches
     one step scale for the pass/fail edge, and only shares :func:`within`.
@@ -201,6 +245,8 @@ def meet_tolerance(code: Callable[[], bytes], check: ClipCheck, tolerance_units:
         if within(errors, tolerance_units):
             return Attempt(payload, errors, n, True)
         if n < rounds:
-            adjust(errors)
+            then = adjust(errors)
             del errors  # not held while the next check measures (F x N numbers of a long clip)
+            if callable(then):  # the adjustment's own work after the errors are let go (a refit)
+                then()
     return Attempt(payload, errors, rounds, False)
