@@ -1,6 +1,8 @@
 # mocodec: the two set-up commands of README.md, and what they stand on.
 #   make demo   encode + decode the bundled sample clips through the C runtime, print ratio and error
 #   make test   every test: C (gcc, clang, ASan/UBSan, fuzz smoke), Python, engine bindings, web
+#   make fuzz   every fuzz target for FUZZ_SECONDS each: the C runtime's (make -C runtime_c fuzz)
+#               and the BVH and glTF readers' (make fuzz-readers, atheris; tests/fuzz_readers.py)
 #   make web    rebuild what `mocodec view` ships: the wasm runtime and the viewer's bundle
 #   make bench  every codec beside ACL 2.1 in one process: bytes, engine bytes, open, µs per pose
 #               (bench/engine_bench.py; BENCH_ASSETS="rma:1,0.02 spline:1" ROUNDS=11 SHARED=../shared),
@@ -24,7 +26,7 @@ SHARED ?= ../shared
 # bench-bake: bench/bake.py's arguments (--fast: a few clips, a 40-clip library, to try it out)
 BAKE_ARGS ?= --clips 12 --codec-clips 3 --clip-seconds 1
 
-.PHONY: demo test web unity-plugins venv test-c test-python test-engines bench bench-bake bench-rd clean
+.PHONY: demo test fuzz fuzz-readers web unity-plugins venv test-c test-python test-engines bench bench-bake bench-rd clean
 
 $(VENV)/.installed: encoder/pyproject.toml encoder/build_native.py $(wildcard encoder/native/*.c encoder/native/*.h) bindings/python/pyproject.toml bindings/python/build_ffi.py $(wildcard runtime_c/src/*.c runtime_c/src/*.h runtime_c/include/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -40,6 +42,31 @@ demo: venv
 
 test: venv
 	@bash tests/run_all.sh
+
+fuzz: venv
+	$(MAKE) -C runtime_c fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)
+	$(MAKE) fuzz-readers
+
+# Corpora grow in runtime_c/build/fuzz_corpus/<reader>, crashes land in runtime_c/build/fuzz_artifacts
+# (beside the C targets'). 10 s and 1,024 MB per input: tests/test_malformed_inputs.py's limits.
+# A run is cut into runs of at most READER_CHUNK seconds on the one corpus: under atheris 3.0 the
+# process grows by about 3.5 KB per input (the same parses outside the fuzzer hold steady), so one
+# long run would reach the memory limit in minutes without any input being at fault.
+READER_FUZZ := runtime_c/build/fuzz_corpus
+READER_CHUNK ?= 60
+fuzz-readers: venv
+	@mkdir -p runtime_c/build/fuzz_artifacts
+	@for r in bvh gltf; do \
+	  $(PY) tests/fuzz_readers.py $$r --write-seeds $(READER_FUZZ)/reader_$$r || exit 1; \
+	  left=$(FUZZ_SECONDS); \
+	  while [ "$$left" -gt 0 ]; do \
+	    t=$$left; [ "$$t" -le $(READER_CHUNK) ] || t=$(READER_CHUNK); \
+	    $(PY) tests/fuzz_readers.py $$r -max_total_time=$$t -timeout=10 -rss_limit_mb=1024 \
+	      -print_final_stats=1 -artifact_prefix=runtime_c/build/fuzz_artifacts/reader_$$r- \
+	      $(READER_FUZZ)/reader_$$r || exit 1; \
+	    left=$$((left - t)); \
+	  done; \
+	done
 
 # The page's parts, in encoder/mocodec/view/static/ (committed: users need neither clang nor node).
 VIEW_STATIC := encoder/mocodec/view/static

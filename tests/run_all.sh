@@ -73,8 +73,10 @@ job_c_gcc() {
 }
 job_c_clang() { step "C runtime, clang: the test suite" make -s -C runtime_c run-tests-clang; }
 job_c_asan() { step "C runtime, clang ASan+UBSan: the test suite" make -s -C runtime_c run-tests-asan; }
+# 8 runtime targets and 2 reader targets at FUZZ_SECONDS (20 s) each: about 3.5 minutes.
 job_fuzz() {
   step "C runtime: fuzz smoke (${FUZZ_SECONDS:-20} s each target)" make -s -C runtime_c fuzz FUZZ_SECONDS="${FUZZ_SECONDS:-20}"
+  step "BVH and glTF readers: fuzz smoke (${FUZZ_SECONDS:-20} s each)" make -s fuzz-readers FUZZ_SECONDS="${FUZZ_SECONDS:-20}"
 }
 job_platforms() {
   step "C runtime on every platform here: Linux x86-64, aarch64 (qemu), s390x big-endian (qemu), Windows x86-64 (wine); CMake package and consumers" \
