@@ -5,7 +5,7 @@ and names the file and line or item; :func:`check_motion` checks a finished :cla
 (from any reader, or built in code) once more before it is encoded, so the encoder never writes
 an asset the runtime would refuse.
 
->>> frame_rate_problem(1e-7)
+>>> frame_time_problem(1e-7, 1)
 '1e+07 frames per second; the format allows at most 100,000'
 >>> name_problem("Hips")
 >>> safe_clip_name("walk:1/2")
