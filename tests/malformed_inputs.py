@@ -102,15 +102,30 @@ def _bvh_variants() -> list[tuple[str, str, bytes, str]]:
         ("a megabyte line of garbage", join(lines[:4] + ["x" * (1 << 20)] + lines[4:]), "refuse"),
         ("1,100 joints", _wide_bvh(1100), "refuse"),
         ("deep nesting of 5,000 joints", _deep_bvh(5000), "refuse"),
+        # Tiny files whose frame count no line backs: the motion arrays (frames x nodes) would
+        # take gigabytes.
+        ("no channels, Frames 3,000,000, no frame lines", _still_bvh(1, 3_000_000), "refuse"),
+        ("200 channel-less joints, Frames 2^24", _still_bvh(200, 1 << 24), "refuse"),
+        ("one channel, 1,000 joints, 20,000 frames", _wide_bvh(1000, frames=20_000, root_channels=1), "refuse"),
     ]
     return [(name, "v.bvh", data, expected) for name, data, expected in odd + bad]
 
 
-def _wide_bvh(joints: int) -> bytes:
-    ls = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", "\tCHANNELS 3 Xposition Yposition Zposition"]
+def _wide_bvh(joints: int, frames: int = 1, root_channels: int = 3) -> bytes:
+    names = " ".join(["Xposition", "Yposition", "Zposition"][:root_channels])
+    ls = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", f"\tCHANNELS {root_channels} {names}"]
     for i in range(joints):
         ls += [f"\tJOINT J{i}", "\t{", "\t\tOFFSET 1 0 0", "\t\tCHANNELS 0", "\t}"]
-    return ("\n".join(ls + ["}", "MOTION", "Frames: 1", "Frame Time: 0.01", "0 0 0"]) + "\n").encode()
+    rows = [" ".join(["0"] * root_channels)] * frames
+    return ("\n".join(ls + ["}", "MOTION", f"Frames: {frames}", "Frame Time: 0.01"] + rows) + "\n").encode()
+
+
+def _still_bvh(joints: int, frames: int) -> bytes:
+    """A hierarchy without any channel that declares ``frames`` frames and holds no frame line."""
+    ls = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", "\tCHANNELS 0"]
+    for i in range(joints):
+        ls += [f"\tJOINT J{i}", "\t{", "\t\tOFFSET 1 0 0", "\t\tCHANNELS 0", "\t}"]
+    return ("\n".join(ls + ["}", "MOTION", f"Frames: {frames}", "Frame Time: 0.01"]) + "\n").encode()
 
 
 def _deep_bvh(depth: int) -> bytes:
@@ -162,6 +177,8 @@ def _gltf_variants() -> list[tuple[str, str, bytes, str]]:
         ("key times decreasing", edited(lambda d: times_buffer(d, [5.5 - 0.5 * i for i in range(12)])), "refuse"),
         ("key times nan", edited(lambda d: times_buffer(d, [float("nan")] * 12)), "refuse"),
         ("keys a million seconds apart", edited(lambda d: times_buffer(d, [i * 1e6 / 11 for i in range(12)])), "refuse"),
+        # Within the frame limit (6 M frames at 24 Hz) but gigabytes once resampled.
+        ("12 keys over 250,000 s", edited(lambda d: times_buffer(d, [i * 250_000 / 11 for i in range(12)])), "refuse"),
         ("node name with an escape (made _)", edited(lambda d: d["nodes"][2].update(name="bone\x1b[2J")), "accept"),
         ("cyclic node children", edited(lambda d: d["nodes"][2].update(children=[1])), "refuse"),
         ("compressed buffers required", edited(lambda d: d.update(extensionsRequired=["EXT_meshopt_compression"])), "refuse"),

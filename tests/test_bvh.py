@@ -619,6 +619,35 @@ def test_a_thousand_and_twenty_five_nodes_are_refused_at_the_node(tmp_path: Path
     assert parse_bvh("\n".join(ok) + "\n").skeleton.node_count == 1024
 
 
+def test_a_hierarchy_without_channels_has_a_line_a_frame() -> None:
+    """A still pose written by write_bvh (one empty line a frame) reads back with its frames;
+    a 'Frames:' count the lines do not back is a truncated file, not millions of frames."""
+    head = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", "\tCHANNELS 0", "\tJOINT Leg", "\t{",
+            "\t\tOFFSET 0 -1 0", "\t\tCHANNELS 0", "\t}", "}", "MOTION"]
+    still = parse_bvh("\n".join(head + ["Frames: 5", "Frame Time: 0.01"]) + "\n" * 6)
+    assert still.frame_count == 5
+    again = parse_bvh(format_bvh(still))
+    assert again.frame_count == 5 and again.skeleton.names == still.skeleton.names
+    with pytest.raises(BVHError) as info:
+        parse_bvh("\n".join(head + ["Frames: 3000000", "Frame Time: 0.01"]) + "\n", path="still.bvh")
+    assert info.value.line == 15 and "'Frames: 3000000' but only 0 frame lines" in info.value.message
+
+
+def test_frames_a_file_does_not_back_are_refused_before_the_motion_exists() -> None:
+    """One channel on 1,000 joints: 2 bytes a frame would become 80 bytes x 1,001 nodes; past
+    the free budget it is refused on the 'Frames:' line, and a real skeleton's ratio is far
+    inside it."""
+    lines = ["HIERARCHY", "ROOT Hips", "{", "\tOFFSET 0 0 0", "\tCHANNELS 1 Xposition"]
+    for i in range(1000):
+        lines += [f"\tJOINT J{i}", "\t{", "\t\tOFFSET 1 0 0", "\t\tCHANNELS 0", "\t}"]
+    lines += ["}", "MOTION"]
+    with pytest.raises(BVHError) as info:
+        parse_bvh("\n".join(lines + ["Frames: 5000", "Frame Time: 0.01"] + ["0"] * 5000) + "\n")
+    assert info.value.line == len(lines) + 1 and "5,005,000 samples" in info.value.message
+    assert parse_bvh("\n".join(lines + ["Frames: 4000", "Frame Time: 0.01"] + ["0"] * 4000) + "\n"
+                     ).frame_count == 4000
+
+
 def test_only_regular_files_are_read(tmp_path: Path) -> None:
     """A FIFO blocked forever and /dev/zero grew to gigabytes: both are refused unread."""
     import os

@@ -12,7 +12,7 @@ import pytest
 from mocodec.encode import EncodeError, encode_motions
 from mocodec.io import read_bvh
 from mocodec.kinematics import forward_kinematics
-from mocodec.limits import LimitError, position_reach, printable, safe_clip_name
+from mocodec.limits import LimitError, position_reach, printable, safe_clip_name, samples_problem
 from mocodec.tolerance import Tolerance
 from mocodec.units import resolve_units
 
@@ -81,3 +81,16 @@ def test_position_reach_bounds_every_world_coordinate(motion):
     # At most the root's reach plus every other node's longest translation (all in one chain).
     loose = np.abs(m.translations[:, 0]).max() + np.linalg.norm(m.translations[:, 1:], axis=-1).max(axis=0).sum()
     assert np.abs(pos).max() <= reach < loose
+
+
+def test_the_sample_budget_keeps_long_captures_and_refuses_unbacked_frames() -> None:
+    """A 2-hour capture at 120 fps on 100 nodes (BVH: 3 values a joint; glTF: a rotation key
+    a node a frame, or resampled at 4 x its key rate) is backed; 12 keys or no value at all
+    for millions of frames is not."""
+    frames = 2 * 3600 * 120
+    assert samples_problem(frames, 100, frames * 3 * 80) is None
+    assert samples_problem(frames, 100, frames * 100) is None
+    assert samples_problem(4 * frames, 100, frames * 100) is None
+    assert samples_problem(4_194_304 // 4, 4, 0) is None
+    assert "24,000,024 samples" in samples_problem(6_000_006, 4, 12, "keys")
+    assert "backed by 0 frame values" in samples_problem(3_000_000, 2, 0, "frame values")

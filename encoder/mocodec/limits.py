@@ -5,7 +5,7 @@ and names the file and line or item; :func:`check_motion` checks a finished :cla
 (from any reader, or built in code) once more before it is encoded, so the encoder never writes
 an asset the runtime would refuse.
 
->>> frame_rate_problem(1e-7)
+>>> frame_time_problem(1e-7, 1)
 '1e+07 frames per second; the format allows at most 100,000'
 >>> name_problem("Hips")
 >>> safe_clip_name("walk:1/2")
@@ -27,6 +27,15 @@ MAX_FRAME_RATE = 100000.0
 MAX_ABS_VALUE = 1e7
 """Bound on every stored length and channel value (file units, degrees)."""
 MAX_NAME_BYTES = 255
+FREE_SAMPLES = 1 << 22
+"""Frame x node samples a reader may build whatever the file holds (about 0.35 GB of motion
+arrays at 80 bytes a sample, under 1 GB with the reader's temporaries): a channel-less BVH, or a
+keyframed glTF animation of an hour at 24 Hz on 48 nodes."""
+SAMPLES_PER_VALUE = 8
+"""Past :data:`FREE_SAMPLES`, at most this many frame x node samples for each value the file
+holds (a BVH frame value, a glTF key), so a tiny file cannot declare gigabytes of frames. A
+capture needs about 0.4 (three channels a joint, one node a joint or end site); a glTF capture
+keyed every frame about 1, or 4 resampled at four times its key rate."""
 _F32_MAX = float(np.finfo(np.float32).max)
 _F32_TINY = float(np.finfo(np.float32).tiny)
 
@@ -131,6 +140,28 @@ def frames_problem(frames: int) -> str | None:
     if frames > MAX_FRAMES:
         return f"{frames:,} frames; the format allows at most {MAX_FRAMES:,} per clip"
     return None
+
+
+def samples_allowed(values: int) -> int:
+    """The frame x node samples ``values`` values read from a file back."""
+    return max(FREE_SAMPLES, SAMPLES_PER_VALUE * values)
+
+
+def samples_problem(frames: int, nodes: int, values: int, what: str = "values") -> str | None:
+    """Why ``frames`` x ``nodes`` samples of motion are more than ``values`` values (``what``:
+    their name in the message) read from a file back (:func:`samples_allowed`), or None.
+    Checked before the motion arrays exist.
+
+    >>> samples_problem(864_000, 100, 864_000 * 300)
+    >>> samples_problem(3_000_000, 2, 0)
+    '3,000,000 frames x 2 nodes = 6,000,000 samples (0.447 GiB) backed by 0 values; the limit is 4,194,304 samples or 8 per value'
+    """
+    samples = frames * nodes
+    if samples <= samples_allowed(values):
+        return None
+    return (f"{frames:,} frames x {nodes:,} nodes = {samples:,} samples ({samples * 80 / 2**30:.3g} GiB) "
+            f"backed by {values:,} {what}; the limit is {FREE_SAMPLES:,} samples or "
+            f"{SAMPLES_PER_VALUE} per {what.rstrip('s')}")
 
 
 def value_problem(values: np.ndarray) -> tuple[tuple[int, ...], str] | None:

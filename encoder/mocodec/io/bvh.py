@@ -108,8 +108,8 @@ def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = Non
         lines.pop()  # the final newline ends the last line; it does not start another
     hierarchy = _HierarchyParser(lines, path)
     skeleton, motion_line = hierarchy.parse()
-    frames, frame_time, data_start = _parse_motion_header(lines, motion_line, path)
-    channels = _parse_frames(lines, data_start, frames, skeleton.channel_count, path)
+    frames, frame_time, data_start, frames_line = _parse_motion_header(lines, motion_line, path)
+    channels = _parse_frames(lines, data_start, frames, skeleton, path, frames_line)
     del lines, text  # the text is not needed for the motion (memory on long clips)
     return Motion.from_channels(skeleton, channels, frame_time, name)
 
@@ -385,9 +385,9 @@ def _next_statement(lines: list[str], start: int) -> int:
 
 
 def _parse_motion_header(lines: list[str], motion_line: int,
-                         path: str | None) -> tuple[int, float, int]:
+                         path: str | None) -> tuple[int, float, int, int]:
     """``Frames:`` and ``Frame Time:`` after the MOTION line: (frames, frame time, index of
-    the first frame line)."""
+    the first frame line, 1-based line of ``Frames:``)."""
     k = _next_statement(lines, motion_line + 1)
     match = _FRAMES_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
     if match is None:
@@ -397,9 +397,10 @@ def _parse_motion_header(lines: list[str], motion_line: int,
         raise BVHError(f"'Frames:' needs a whole number, got {_show(match.group(1))}", path,
                        k + 1) from None
     frames = int(text)
+    frames_line = k + 1
     problem = limits.frames_problem(frames)
     if problem:
-        raise BVHError(f"'Frames: {frames}': {problem}", path, k + 1)
+        raise BVHError(f"'Frames: {frames}': {problem}", path, frames_line)
     k = _next_statement(lines, k + 1)
     match = _FRAME_TIME_RE.fullmatch(lines[k].strip()) if k < len(lines) else None
     if match is None:
@@ -412,23 +413,34 @@ def _parse_motion_header(lines: list[str], motion_line: int,
     problem = limits.frame_time_problem(frame_time, frames)
     if problem:
         raise BVHError(f"'Frame Time: {match.group(1).strip()[:40]}': {problem}", path, k + 1)
-    return frames, frame_time, k + 1
+    return frames, frame_time, k + 1, frames_line
 
 
-def _parse_frames(lines: list[str], start: int, frames: int, width: int,
-                  path: str | None) -> np.ndarray:
-    """The ``(frames, width)`` channel values from the frame lines from ``start`` on, each
-    within the format's +-1e7. Lines are converted about :data:`_CHUNK_VALUES` values at a time
-    into one array no larger than the lines present (``Frames:`` may promise more than the file
-    holds)."""
+def _parse_frames(lines: list[str], start: int, frames: int, skeleton: Skeleton,
+                  path: str | None, frames_line: int) -> np.ndarray:
+    """The ``(frames, channels)`` values from the frame lines from ``start`` on, each within
+    the format's +-1e7. Lines are converted about :data:`_CHUNK_VALUES` values at a time into
+    one array no larger than the lines present (``Frames:`` may promise more than the file
+    holds), and the motion the values become (frames x nodes) must be backed by them
+    (:func:`mocodec.limits.samples_problem`)."""
+    width = skeleton.channel_count
     rows_at = [k for k in range(start, len(lines)) if lines[k] and not lines[k].isspace()]
     if width == 0:
-        # A hierarchy without channels has empty frame lines; anything else is an error.
+        # A hierarchy without channels has one empty line a frame (as write_bvh writes it);
+        # anything else on them is an error, and fewer lines than 'Frames:' a truncated file.
         if rows_at:
             raise BVHError("frame line has values but the hierarchy has no channels", path,
                            rows_at[0] + 1)
+        if len(lines) - start < frames:
+            raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {len(lines) - start} "
+                           "frame lines (empty: the hierarchy has no channels)", path, len(lines) + 1)
+    present = min(frames, len(rows_at) if width else frames)
+    problem = limits.samples_problem(present, skeleton.node_count, present * width,
+                                     "frame values")
+    if problem:
+        raise BVHError(f"'Frames: {frames}': {problem}", path, frames_line)
+    if width == 0:
         return np.zeros((frames, 0))
-    present = min(frames, len(rows_at))
     values = np.empty((present, width))
     chunk_lines = max(1, _CHUNK_VALUES // width)
     for first in range(0, present, chunk_lines):

@@ -608,6 +608,14 @@ def read_gltf(path: str | os.PathLike, rate: float | None = None) -> list[Motion
         if problem:  # before the (frames, nodes) arrays exist
             raise GLTFError(f"keys from {t0:g} s to {t1:g} s at {clip_rate:g} Hz: {problem}", str(path),
                             f"animation {a}")
+        # Sparse keys over a long span resample to frames no key backs: refused before the
+        # arrays exist, the budget counted in keys (one per key time of each channel).
+        keys = sum(len(c.times) for c in chans)
+        problem = limits.samples_problem(frames, sk.node_count, keys, "keys")
+        if problem:
+            fit = (limits.samples_allowed(keys) // sk.node_count - 1) / (t1 - t0)  # t1 > t0 here
+            raise GLTFError(f"{t1 - t0:,.6g} s of keys at {clip_rate:g} Hz: {problem}; resample at "
+                            f"{fit:.3g} Hz or less (--rate)", str(path), f"animation {a}")
         times = t0 + np.arange(frames) / clip_rate
         n = sk.node_count
         rot = np.broadcast_to(sk.rest_rotations, (frames, n, 4)).copy()
