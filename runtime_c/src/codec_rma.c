@@ -21,13 +21,16 @@
 #define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
 
 /* Rare paths kept out of line, so the hot loops around them keep their registers; the key
- * decoders inlined into locate, where a random access calls them four times a track. */
+ * decoder inlined into locate, where a random access calls it four times a track, and kept
+ * out of line for the callers that read one key at a time. */
 #if defined(__GNUC__) || defined(__clang__)
 #define RARE_PATH __attribute__((noinline, cold))
 #define HOT_INLINE __attribute__((always_inline)) inline
+#define OUT_OF_LINE __attribute__((noinline))
 #else
 #define RARE_PATH
 #define HOT_INLINE
+#define OUT_OF_LINE
 #endif
 
 enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
@@ -433,10 +436,7 @@ static HOT_INLINE void key_value(const uint8_t* p, const track_layout* t, group_
 
 /* key_value out of line, for the callers that read one key at a time (a step forward, the
  * validation): inlined there it only grows their loops. */
-#if defined(__GNUC__) || defined(__clang__)
-__attribute__((noinline))
-#endif
-static void one_key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
+static OUT_OF_LINE void one_key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
     key_value(p, t, g, j, q);
 }
 
@@ -479,12 +479,17 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
+/* A key's value: q x step rounded to binary32 through binary64, since q may exceed 2^24 on
+ * long clips, where binary32 would round it. From 32 bits, which every vector unit converts. */
+static HOT_INLINE float key_scaled(int32_t q, float step) {
+    return (float)((double)q * (double)step);
+}
+
 /* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
 static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int64_t q[4]) {
     uint32_t c;
     ts->t[slot] = (float)frame;
-    /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
+    for (c = 0; c < 4u; ++c) ts->v[slot][c] = key_scaled((int32_t)q[c], ts->L.step[c]); /* |q| < 2^30 */
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -520,8 +525,9 @@ static void set_curve(track_state* ts) {
 /* Random access: the segment holding frame position x, its four keys read afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s, f[4];
     int64_t q[4];
+    int32_t n[4][4];
     if (xi > t->frames - 1u) xi = t->frames - 1u;
     bit_window b;
     c = cell_of(t, xi);
@@ -544,13 +550,24 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     u[3] = i + 2u <= last ? next_one(p, t, &b, u[2]) : u[2];
     ts->i = i;
     ts->u3 = u[3];
-    /* Keys i - 1 ... i + 2, ends repeated. */
+    /* Keys i - 1 ... i + 2, ends repeated; scaled together, which vectorises. */
     for (s = i > 0 ? 0u : 1u; s < 4u && i + s <= last + 1u; ++s) {
         key_value(p, t, &ts->group, i + s - 1u, q);
-        store_key(ts, s, key_frame_at(p, t, i + s - 1u, u[s]), q);
+        for (c = 0; c < 4u; ++c) n[s][c] = (int32_t)q[c]; /* |q| < 2^30 in a validated payload */
+        f[s] = key_frame_at(p, t, i + s - 1u, u[s]);
     }
-    if (i == 0) repeat_slot(ts, 0, 1);
-    if (i + 2u > last) repeat_slot(ts, 3, 2);
+    if (i == 0) {
+        memcpy(n[0], n[1], sizeof n[0]);
+        f[0] = f[1];
+    }
+    if (i + 2u > last) {
+        memcpy(n[3], n[2], sizeof n[3]);
+        f[3] = f[2];
+    }
+    for (s = 0; s < 4u; ++s) {
+        ts->t[s] = (float)f[s];
+        for (c = 0; c < 4u; ++c) ts->v[s][c] = key_scaled(n[s][c], ts->L.step[c]);
+    }
     set_curve(ts);
 }
 
@@ -637,7 +654,7 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
     }
     s = (x - ts->t1) * ts->inv_h;
     for (c = 0; c < 4u; ++c)
-        out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
+        out[c] = ((ts->coef[3][c] * s + ts->coef[2][c]) * s + ts->coef[1][c]) * s + ts->coef[0][c];
 }
 
 /* Per clip: each track's layout and constants, each node's base transform and tracks. */

@@ -228,7 +228,7 @@ typedef struct track_state {
     /* The segment [t1, t2] as a cubic in s = (x - t1) / (t2 - t1), Horner-ready: computed
      * once per key change, so a sample costs three multiply-adds per component. */
     float inv_h;
-    float coef[4][4]; /* [component][power] */
+    float coef[4][4]; /* [power][component] */
 } track_state;
 
 typedef struct node_plan {
@@ -476,7 +476,7 @@ static void eval_track(const track_state* ts, float x, float out[4]) {
     float s = (x - ts->t[1]) * ts->inv_h;
     uint32_t c;
     for (c = 0; c < ts->dims; ++c)
-        out[c] = ((ts->coef[c][3] * s + ts->coef[c][2]) * s + ts->coef[c][1]) * s + ts->coef[c][0];
+        out[c] = ((ts->coef[3][c] * s + ts->coef[2][c]) * s + ts->coef[1][c]) * s + ts->coef[0][c];
 }
 
 static void prepare(const layout* L, const mcd_clip_view* v, const views* s) {

@@ -210,19 +210,20 @@ static inline void mcd_set_rotation(float out[4], mcd_quat q) {
 }
 
 /* Catmull-Rom segment [t1, t2] of keys (t0, v0) ... (t3, v3) as Horner coefficients in
- * s = (x - t1) / (t2 - t1): coef[c][power], for `dims` components; returns 1 / (t2 - t1).
+ * s = (x - t1) / (t2 - t1): coef[power][c], for `dims` components; returns 1 / (t2 - t1).
  * The Hermite segment with finite-difference tangents, expanded in powers of s. Inline: it
- * runs once per track per key interval, and a constant `dims` lets the loop unroll. */
+ * runs once per track per key interval, and a constant `dims` lets the loop unroll. Powers
+ * outermost, so building and evaluating all components is one vector operation each. */
 static inline float mcd_segment_coefficients(const float t[4], const float v[4][4], uint32_t dims, float coef[4][4]) {
     float h = t[2] - t[1], a = h / (t[2] - t[0]), b = h / (t[3] - t[1]);
     uint32_t c;
     for (c = 0; c < dims; ++c) {
         float p1 = v[1][c], p2 = v[2][c];
         float m1 = a * (p2 - v[0][c]), m2 = b * (v[3][c] - p1);
-        coef[c][0] = p1;
-        coef[c][1] = m1;
-        coef[c][2] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
-        coef[c][3] = 2.0f * (p1 - p2) + m1 + m2;
+        coef[0][c] = p1;
+        coef[1][c] = m1;
+        coef[2][c] = 3.0f * (p2 - p1) - 2.0f * m1 - m2;
+        coef[3][c] = 2.0f * (p1 - p2) + m1 + m2;
     }
     return 1.0f / h;
 }
