@@ -479,17 +479,12 @@ static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, trac
     *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
 }
 
-/* A key's value: q x step rounded to binary32 through binary64, since q may exceed 2^24 on
- * long clips, where binary32 would round it. From 32 bits, which every vector unit converts. */
-static HOT_INLINE float key_scaled(int32_t q, float step) {
-    return (float)((double)q * (double)step);
-}
-
 /* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
 static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int64_t q[4]) {
     uint32_t c;
     ts->t[slot] = (float)frame;
-    for (c = 0; c < 4u; ++c) ts->v[slot][c] = key_scaled((int32_t)q[c], ts->L.step[c]); /* |q| < 2^30 */
+    /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
+    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
 }
 
 static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
@@ -525,9 +520,8 @@ static void set_curve(track_state* ts) {
 /* Random access: the segment holding frame position x, its four keys read afresh. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s, f[4];
+    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
     int64_t q[4];
-    int32_t n[4][4];
     if (xi > t->frames - 1u) xi = t->frames - 1u;
     bit_window b;
     c = cell_of(t, xi);
@@ -550,24 +544,13 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
     u[3] = i + 2u <= last ? next_one(p, t, &b, u[2]) : u[2];
     ts->i = i;
     ts->u3 = u[3];
-    /* Keys i - 1 ... i + 2, ends repeated; scaled together, which vectorises. */
+    /* Keys i - 1 ... i + 2, ends repeated. */
     for (s = i > 0 ? 0u : 1u; s < 4u && i + s <= last + 1u; ++s) {
         key_value(p, t, &ts->group, i + s - 1u, q);
-        for (c = 0; c < 4u; ++c) n[s][c] = (int32_t)q[c]; /* |q| < 2^30 in a validated payload */
-        f[s] = key_frame_at(p, t, i + s - 1u, u[s]);
+        store_key(ts, s, key_frame_at(p, t, i + s - 1u, u[s]), q);
     }
-    if (i == 0) {
-        memcpy(n[0], n[1], sizeof n[0]);
-        f[0] = f[1];
-    }
-    if (i + 2u > last) {
-        memcpy(n[3], n[2], sizeof n[3]);
-        f[3] = f[2];
-    }
-    for (s = 0; s < 4u; ++s) {
-        ts->t[s] = (float)f[s];
-        for (c = 0; c < 4u; ++c) ts->v[s][c] = key_scaled(n[s][c], ts->L.step[c]);
-    }
+    if (i == 0) repeat_slot(ts, 0, 1);
+    if (i + 2u > last) repeat_slot(ts, 3, 2);
     set_curve(ts);
 }
 
