@@ -20,6 +20,7 @@
 #define MAX_CLIPS 256
 #define MAX_NODES 256
 #define MAX_ADVANCE 3u
+#define FAR_FRAMES 8.0f /* frames past the window's last key from which a step forward locates */
 
 typedef struct quat { float x, y, z, w; } quat;
 
@@ -43,7 +44,8 @@ static int64_t sext(uint64_t u, uint32_t n) {
 /* ------------------------------------------------------------------ layout */
 typedef struct track {
     const uint8_t *table, *data;
-    uint32_t keys, rows, row_bits, offset_bits, frames, head_bits, anchor_bits;
+    uint32_t keys, rows, row_bits, offset_bits, frames, head_bits, anchor_bits, nmask, wkeep[4];
+    uint64_t omask;
     uint8_t kind, d, split, b, tmode, knot, slot, nbits;
     uint8_t abits[4], kshift[4];
     uint16_t node;
@@ -58,6 +60,7 @@ typedef struct row {
     uint32_t e, n, gw, tbits, rec, at; /* at: bit of the first record */
     uint32_t off;
     uint8_t w[4], sh[4];
+    uint64_t mask[4]; /* (1 << w) - 1 */
     int64_t a0[4], da[4];
 } row;
 
@@ -84,20 +87,17 @@ static void load_row(const track* t, uint32_t e, row* R) {
     uint64_t h = rd64(t->table + (bit >> 3)) >> (bit & 7u); /* head: <= 57 bits */
     uint32_t c, at = 0;
     R->e = e;
-    R->n = (uint32_t)(h & ((1u << t->nbits) - 1u));
+    R->n = (uint32_t)h & t->nmask;
     h >>= t->nbits;
-    if (t->tmode) {
-        R->gw = (uint32_t)(h & 15u);
-        h >>= 4;
-    } else {
-        R->gw = 0;
-    }
-    R->off = (uint32_t)(h & (((uint64_t)1 << t->offset_bits) - 1u));
+    R->gw = (uint32_t)h & (t->tmode ? 15u : 0u);
+    h >>= 4u * t->tmode;
+    R->off = (uint32_t)(h & t->omask);
     h >>= t->offset_bits;
-    for (c = 0; c < 4u; ++c) {
-        uint32_t w = c < t->d ? (uint32_t)(h >> (5u * c)) & 31u : 0u;
+    for (c = 0; c < 4u; ++c) { /* widths past the track's are 0 (the field is masked to d) */
+        uint32_t w = (uint32_t)(h >> (5u * c)) & 31u & t->wkeep[c];
         R->w[c] = (uint8_t)w;
         R->sh[c] = (uint8_t)at;
+        R->mask[c] = ((uint64_t)1 << w) - 1u;
         at += w;
     }
     R->rec = at;
@@ -112,20 +112,26 @@ static void load_row(const track* t, uint32_t e, row* R) {
 }
 
 /* Key r of the row's block, at offset o in the block: its lattice integers (components past
- * the track's: 0). */
-static void key_q(const track* t, const row* R, uint32_t r, uint32_t o, int64_t q[4]) {
+ * the track's: 0). D is a constant in each caller's copy, so the component loops unroll. */
+static inline void key_q_d(const track* t, const row* R, uint32_t r, uint32_t o, int64_t q[4], uint32_t D) {
     uint32_t bit = R->at + r * R->rec, c;
     uint64_t w = rd64(t->data + (bit >> 3)) >> (bit & 7u);
     q[3] = 0;
     if (t->knot) {
-        for (c = 0; c < t->d; ++c) {
-            uint32_t wc = R->w[c];
-            int64_t res = wc ? sext(w >> R->sh[c], wc) : 0;
+        for (c = 0; c < D; ++c) {
+            int64_t res = R->w[c] ? sext(w >> R->sh[c], R->w[c]) : 0;
             q[c] = R->a0[c] + ((R->da[c] * (int64_t)o) >> t->b) + res; /* floor of the chord */
         }
     } else {
-        for (c = 0; c < t->d; ++c) q[c] = R->a0[c] + (int64_t)((w >> R->sh[c]) & (((uint64_t)1 << R->w[c]) - 1u));
+        for (c = 0; c < D; ++c) q[c] = R->a0[c] + (int64_t)((w >> R->sh[c]) & R->mask[c]);
     }
+}
+
+static void key_q(const track* t, const row* R, uint32_t r, uint32_t o, int64_t q[4]) {
+    if (t->d == 3u)
+        key_q_d(t, R, r, o, q, 3u);
+    else
+        key_q_d(t, R, r, o, q, 4u);
 }
 
 /* A position in the key sequence: block, rank, frame offset in the block, and the bit of the
@@ -342,7 +348,8 @@ static void locate(const track* t, state* s, float x) {
         int64_t q[4];
         key_q(t, k[slot].R, k[slot].r, k[slot].o, q);
         s->t[slot] = (float)((k[slot].R->e << t->b) + k[slot].o);
-        for (c = 0; c < 4u; ++c) s->v[slot][c] = (float)((double)q[c] * (double)t->step[c]);
+        for (c = 0; c < 3u; ++c) s->v[slot][c] = (float)((double)q[c] * (double)t->step[c]);
+        s->v[slot][3] = t->d == 4u ? (float)((double)q[3] * (double)t->step[3]) : 0.0f;
     }
     s->i = have < 2u ? 0u : s->t[0] == 0.0f ? 1u : 2u;
     if (have < 2u) repeat(s, 0, 1);
@@ -381,12 +388,19 @@ static void track_value(const track* t, state* s, float x, float out[4]) {
     if (!s->valid || x < s->t1) {
         locate(t, s, x);
     } else if (x >= s->t2 && !s->at_end) {
+        /* A jump well past the window (random access): locate at once rather than read keys
+         * one by one first. */
+        if (x >= s->t[3] + FAR_FRAMES) {
+            locate(t, s, x);
+            goto eval;
+        }
         for (n = 0; n < MAX_ADVANCE && x >= s->t[2] && !s->at_end; ++n) advance(t, s);
         if (x >= s->t[2] && !s->at_end)
             locate(t, s, x);
         else
             set_curve(t, s);
     }
+eval:
     u = (x - s->t1) * s->inv_h;
     for (c = 0; c < 4u; ++c) out[c] = ((s->coef[c][3] * u + s->coef[c][2]) * u + s->coef[c][1]) * u + s->coef[c][0];
 }
@@ -473,6 +487,9 @@ static int load(const char* path) {
             t->frames = C->frames;
             t->head_bits = t->nbits + 4u * t->tmode + t->offset_bits + 5u * t->d;
             t->anchor_bits = t->abits[0] + t->abits[1] + t->abits[2] + t->abits[3];
+            t->nmask = (1u << t->nbits) - 1u;
+            t->omask = ((uint64_t)1 << t->offset_bits) - 1u;
+            for (k = 0; k < 4u; ++k) t->wkeep[k] = k < t->d ? 31u : 0u;
             memcpy(&t->step[0], r + 44, 4);
             t->step[1] = t->step[2] = t->step[3] = t->step[0];
             if (t->kind == 2u) memcpy(&t->step[0], r + 64, 4);
