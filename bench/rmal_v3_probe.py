@@ -22,8 +22,12 @@ fixed-width records (per component a residual, no escapes):
   p = A_j + floor((A_{j+1} - A_j) (f - jB) / B), a shift; the anchors a least-squares fit of the
   keys rounded to the track's anchor lattice 2^k.
 
-``prev`` (each key from the one before it, in the same rows) is a size reference only: a
-random access would sum the residuals of the block up to its key.
+- ``prev``: the block's first key is the anchor, each next key a difference from the one before
+  (a random access sums the block's differences up to its key; the prototype keeps the running
+  sum, so the window's four consecutive keys cost one pass).
+
+``FB prev (size reference)`` (the same predictor with v2's anchor widths, every block shift and
+time mode) and the ``entropy floor`` are printed for comparison.
 
 Run: ``python bench/rmal_v3_probe.py [--write DIR]`` (sizes of both dev assets; ``--write``
 also writes ``DIR/<asset>.v3p`` for the prototype decoder).
@@ -58,6 +62,7 @@ DIMS = {1: 3, 2: 4, 3: 3, 4: 3}
 # block fields instead of the group fields: 4 bytes more (block shift, cell shift, width bits,
 # offset bits, per-component knot shifts, the row's bit count).
 V3_DESC_EXTRA = 4
+PREDICTORS = ("for", "knot", "prev")  # the prototype's predictor codes
 WIDTH_BITS = 5  # a record field's width, 0 ... 31 (no escapes)
 BLOCK_SHIFTS = (3, 4, 5, 6, 7, 8)
 MAX_RECORD_BITS = 57  # one unaligned 64-bit load reads a record at any bit
@@ -176,7 +181,7 @@ class BlockLayout:
 
     b: int
     tmode: int  # 0 mask, 1 gaps
-    pred: str  # "knot" or "for"
+    pred: str  # "for", "knot" or "prev"
     kshift: list[int]  # per component: anchors are multiples of 2^k
     abits: list[int]  # bits of each stored anchor (anchor >> k, two's complement)
     nbits: int
@@ -242,6 +247,7 @@ def block_layout(t: Track, b: int, pred: str, tmode: int, kmax: int = 10, fit: n
     if pred == "knot" and fit is None:
         fit = knot_fit(frames, q.astype(np.float64), b, blocks)
     off = frames - (j << b)
+    records = counts - (counts > 0) if pred == "prev" else counts  # prev: the first key is the anchor
     widths_all, anchors_all, res_all, abits_all, kshift = [], [], [], [], []
     for c in range(d):
         cand = None
@@ -252,6 +258,15 @@ def block_layout(t: Track, b: int, pred: str, tmode: int, kmax: int = 10, fit: n
                 r = q[:, c] - (A[j] + (((A[j + 1] - A[j]) * off) >> b))
                 w[nonempty] = signed_width(np.minimum.reduceat(r, starts), np.maximum.reduceat(r, starts))
                 fieldv = r & ((1 << w[j]) - 1)
+            elif pred == "prev":  # the block's first key whole, each next one from the one before
+                if k > 0:
+                    break
+                A = np.zeros(blocks, dtype=np.int64)
+                A[nonempty] = q[starts, c]
+                r = np.diff(q[:, c], prepend=q[0, c])
+                r[starts] = 0
+                w[nonempty] = signed_width(np.minimum.reduceat(r, starts), np.maximum.reduceat(r, starts))
+                fieldv = r & ((1 << w[j]) - 1)
             else:
                 A = np.zeros(blocks, dtype=np.int64)
                 A[nonempty] = (np.minimum.reduceat(q[:, c], starts) >> k) << k
@@ -259,7 +274,7 @@ def block_layout(t: Track, b: int, pred: str, tmode: int, kmax: int = 10, fit: n
                 fieldv = q[:, c] - A[j]
             stored = A >> k
             abits = max(1, int(signed_width(np.array([stored.min()]), np.array([stored.max()]))[0]))
-            bits = int((counts * w).sum()) + len(A) * abits
+            bits = int((records * w).sum()) + len(A) * abits
             if cand is None or bits < cand[0]:
                 cand = (bits, k, w, A, fieldv, abits)
             if k > 0 and w.max(initial=0) == 0:
@@ -271,8 +286,8 @@ def block_layout(t: Track, b: int, pred: str, tmode: int, kmax: int = 10, fit: n
         res_all.append(fieldv)
         abits_all.append(abits)
     widths = np.stack(widths_all, 1)
-    value_bits = int((counts * widths.sum(1)).sum())
-    block_bits = tbits + counts * widths.sum(1)
+    value_bits = int((records * widths.sum(1)).sum())
+    block_bits = tbits + records * widths.sum(1)
     offsets = np.concatenate([[0], np.cumsum(block_bits)])
     data_bits = int(offsets[-1])
     rows = blocks + 1 if pred == "knot" else blocks
@@ -416,13 +431,14 @@ def write_proto(path: Path, clips: list[Clip], layouts: list[list[BlockLayout]])
                 else:
                     dw.write(L.gaps[sl], int(L.gap_widths[e]))
                 w = L.widths[e]
-                dw.write(L.residuals[sl].ravel(), np.tile(w, n))
+                first = 1 if L.pred == "prev" else 0  # prev: the first key is the row's anchor
+                dw.write(L.residuals[sl][first:].ravel(), np.tile(w, n - first))
                 k0 += n
             data = dw.getvalue()
             assert dw.bit_length == L.data_bits, (dw.bit_length, L.data_bits)
             data += bytes(L.data_bytes - len(data))
             pad = lambda v: list(v) + [0] * (4 - d)  # noqa: E731
-            recs += struct.pack("<8B2H6I4B4B", t.kind, d, int(t.split), L.b, L.tmode, L.pred == "knot", t.slot,
+            recs += struct.pack("<8B2H6I4B4B", t.kind, d, int(t.split), L.b, L.tmode, PREDICTORS.index(L.pred), t.slot,
                                 L.nbits, t.node, 0, len(t.frames), L.rows, L.row_bits, L.offset_bits, len(blob),
                                 len(blob) + len(table), *pad(L.abits), *pad(L.kshift))
             dd = t.desc + bytes(40 - len(t.desc))
@@ -439,6 +455,8 @@ CANDIDATES: tuple[tuple[str, tuple[str, ...], dict], ...] = (
     ("FB knot|for, mask|gaps", ("knot", "for"), {}),
     ("FB for, gaps only", ("for",), dict(tmodes=(1,))),
     ("FB for, mask only", ("for",), dict(tmodes=(0,))),
+    ("FB prev, mask|gaps", ("prev",), {}),
+    ("FB knot|for|prev, mask|gaps", ("knot", "for", "prev"), {}),
 )
 
 

@@ -46,7 +46,7 @@ typedef struct track {
     const uint8_t *table, *data;
     uint32_t keys, rows, row_bits, offset_bits, frames, head_bits, anchor_bits, nmask, wkeep[4];
     uint64_t omask;
-    uint8_t kind, d, split, b, tmode, knot, slot, nbits;
+    uint8_t kind, d, split, b, tmode, knot, slot, nbits; /* knot: the predictor, 0 for, 1 knot, 2 prev */
     uint8_t abits[4], kshift[4];
     uint16_t node;
     float step[4];
@@ -62,6 +62,8 @@ typedef struct row {
     uint8_t w[4], sh[4];
     uint64_t mask[4]; /* (1 << w) - 1 */
     int64_t a0[4], da[4];
+    uint32_t cr;      /* prev predictor: the rank whose value cq holds (the running sum) */
+    int64_t cq[4];
 } row;
 
 static void anchors(const track* t, uint32_t e, int64_t a[4]) {
@@ -101,10 +103,13 @@ static void load_row(const track* t, uint32_t e, row* R) {
         at += w;
     }
     R->rec = at;
-    R->tbits = t->tmode ? R->n * R->gw : (1u << t->b);
+    R->tbits = t->tmode ? R->n * R->gw : (R->n ? 1u << t->b : 0u);
     R->at = R->off + R->tbits;
     anchors(t, e, R->a0);
-    if (t->knot) {
+    if (t->knot == 2u) {
+        R->cr = 0;
+        memcpy(R->cq, R->a0, sizeof R->cq);
+    } else if (t->knot == 1u) {
         int64_t a1[4];
         anchors(t, e + 1u, a1);
         for (c = 0; c < 4u; ++c) R->da[c] = a1[c] - R->a0[c];
@@ -117,7 +122,7 @@ static inline void key_q_d(const track* t, const row* R, uint32_t r, uint32_t o,
     uint32_t bit = R->at + r * R->rec, c;
     uint64_t w = rd64(t->data + (bit >> 3)) >> (bit & 7u);
     q[3] = 0;
-    if (t->knot) {
+    if (t->knot == 1u) {
         for (c = 0; c < D; ++c) {
             int64_t res = R->w[c] ? sext(w >> R->sh[c], R->w[c]) : 0;
             q[c] = R->a0[c] + ((R->da[c] * (int64_t)o) >> t->b) + res; /* floor of the chord */
@@ -127,7 +132,31 @@ static inline void key_q_d(const track* t, const row* R, uint32_t r, uint32_t o,
     }
 }
 
+/* prev predictor: key r is the anchor plus the differences of records 0 ... r - 1 (key 0 has
+ * none); the row keeps the last sum, so keys read in order cost one record each. */
+static inline void key_prev_d(const track* t, row* R, uint32_t r, int64_t q[4], uint32_t D) {
+    uint32_t c;
+    if (r < R->cr) {
+        R->cr = 0;
+        memcpy(R->cq, R->a0, sizeof R->cq);
+    }
+    while (R->cr < r) {
+        uint32_t bit = R->at + R->cr * R->rec;
+        uint64_t w = rd64(t->data + (bit >> 3)) >> (bit & 7u);
+        for (c = 0; c < D; ++c) R->cq[c] += R->w[c] ? sext(w >> R->sh[c], R->w[c]) : 0;
+        R->cr++;
+    }
+    memcpy(q, R->cq, sizeof R->cq);
+}
+
 static void key_q(const track* t, const row* R, uint32_t r, uint32_t o, int64_t q[4]) {
+    if (t->knot == 2u) { /* the running sum lives in the row: a cache, not the row's fields */
+        if (t->d == 3u)
+            key_prev_d(t, (row*)R, r, q, 3u);
+        else
+            key_prev_d(t, (row*)R, r, q, 4u);
+        return;
+    }
     if (t->d == 3u)
         key_q_d(t, R, r, o, q, 3u);
     else
