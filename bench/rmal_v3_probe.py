@@ -98,7 +98,7 @@ def load_asset(path: Path) -> tuple[int, list[Clip]]:
     header, end padding), and every clip's keys (in payload order)."""
     data = path.read_bytes()
     summary = read_summary(data)
-    name, _version, off, size = next(s for s in summary.sections if s[0] == "RMAL")
+    _name, _version, off, _size = next(s for s in summary.sections if s[0] == "RMAL")
     count = struct.unpack_from("<I", data, off)[0]
     pos = off + 16
     clips = []

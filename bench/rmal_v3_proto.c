@@ -492,11 +492,13 @@ static int load(const char* path) {
     if (!d || fread(d, 1, (size_t)n, f) != (size_t)n || memcmp(d, "V3P1", 4)) return 0;
     fclose(f);
     nclips = rd32(d + 4);
+    if (nclips > MAX_CLIPS) return 0; /* the prototype's fixed tables */
     for (c = 0; c < nclips; ++c) {
         clip* C = &clips[c];
         const uint8_t *recs, *blob;
         C->frames = rd32(d + pos);
         C->ntracks = rd32(d + pos + 4);
+        if (C->ntracks > MAX_TRACKS) return 0;
         recs = d + pos + 12;
         blob = recs + 68u * C->ntracks;
         C->nodes = 0;
@@ -533,6 +535,7 @@ static int load(const char* path) {
                 inv = 1.0f / sqrtf(n2);
                 for (k = 0; k < 3u; ++k) t->axis[k] *= inv;
             }
+            if (t->node >= MAX_NODES) return 0;
             if (t->node + 1u > C->nodes) C->nodes = t->node + 1u;
         }
         pos += 12u + 68u * C->ntracks + rd32(d + pos + 8);
