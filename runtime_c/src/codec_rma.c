@@ -558,20 +558,26 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
 #define MAX_ADVANCE 3u
 
 /* Sequential playback and short steps forward (a game tick moves a few frames): the window
- * moves on by one key, reading the new last key, whose unary bit and frame the scan ahead
- * found. */
-static void advance(const uint8_t* p, track_state* ts, uint32_t u, uint32_t frame) {
-    uint32_t last = ts->L.keys - 1u, s;
-    for (s = 0; s < 3u; ++s) repeat_slot(ts, s, s + 1u); /* slot by slot: no overlapping copy */
-    ts->i++;
-    if (ts->i + 2u <= last) {
-        int64_t q[4];
-        ts->u3 = u;
-        one_key_value(p, &ts->L, &ts->group, ts->i + 2u, q);
-        store_key(ts, 3, frame, q);
-    } else {
-        repeat_slot(ts, 3, 2);
+ * moves on by n keys (1 ... MAX_ADVANCE) in one shift, then reads the new last keys, whose
+ * unary bits and frames the scan ahead found. One shift, not one a key: a shift reads slots
+ * whole, and a key just stored would make it wait for the stores. */
+static void advance(const uint8_t* p, track_state* ts, uint32_t n, const uint32_t u[MAX_ADVANCE],
+                    const uint32_t f[MAX_ADVANCE]) {
+    uint32_t last = ts->L.keys - 1u, k;
+    memmove(ts->t, ts->t + n, (4u - n) * sizeof ts->t[0]);
+    memmove(ts->v[0], ts->v[n], (4u - n) * sizeof ts->v[0]);
+    for (k = 0; k < n; ++k) {
+        uint32_t slot = 4u - n + k;
+        if (ts->i + k + 3u <= last) { /* key i + 2 of the window after k + 1 steps */
+            int64_t q[4];
+            ts->u3 = u[k];
+            one_key_value(p, &ts->L, &ts->group, ts->i + k + 3u, q);
+            store_key(ts, slot, f[k], q);
+        } else {
+            repeat_slot(ts, slot, slot - 1u);
+        }
     }
+    ts->i += n;
 }
 
 /* Frames past the window's last key from which a step forward first asks far_ahead: a game
@@ -618,7 +624,7 @@ static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x, uin
 /* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
  * Either way the window is the four keys around x's segment, so the curve is the same bits. */
 static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, k, n, last = ts->L.keys - 1u, u[MAX_ADVANCE], f[MAX_ADVANCE];
+    uint32_t c, n, last = ts->L.keys - 1u, u[MAX_ADVANCE], f[MAX_ADVANCE];
     float s;
     if (last == 0) { /* a one-frame clip */
         for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
@@ -631,7 +637,7 @@ static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]
         if (n == 0) {
             locate(p, ts, x);
         } else {
-            for (k = 0; k < n; ++k) advance(p, ts, u[k], f[k]);
+            advance(p, ts, n, u, f);
             set_curve(ts);
         }
     }
