@@ -11,7 +11,7 @@ from mocodec import rotations as R
 from mocodec.curves import KIND_MRP, KIND_TWIST
 from mocodec.encode import encode_motions
 from mocodec.io import read_bvh
-from mocodec.keyframes import (Track, _retarget, _retarget_kept, _track_recon, fit_track,
+from mocodec.keyframes import (Fitted, Track, _retarget, _retarget_kept, _track_recon, fit_track,
                                untouched_keys)
 from mocodec.motion import Motion
 from mocodec.quantize import StepQuantizer
@@ -63,7 +63,7 @@ def test_a_refit_after_a_local_change_keeps_the_curve_elsewhere(motion):
     track.budget = np.full(frames, 0.01)
     mandatory = np.array([0, frames - 1])
     fit_track(track, mandatory, 0.6, StepQuantizer.for_range)
-    track.fitted = (track.values, track.budget.copy(), None)
+    track.fitted = Fitted.of(track)
     curve = _track_recon(track).copy()
     assert np.array_equal(untouched_keys(track), track.keys)  # nothing changed: every key stays
     bumped = values.copy()

@@ -116,7 +116,7 @@ class Track:
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (None, inf: not held)
-    fitted: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None  # (values, budget, half_budget) its keys were last fitted to (local refits)
+    fitted: "Fitted | None" = None  # what its keys were last fitted to (local refits)
     mrp_limit: float = TWIST_MRP_LIMIT  # largest |p| a retarget keeps (SWING_MRP_SWITCH for swinging_mrp_track)
 
     @property
@@ -127,6 +127,43 @@ class Track:
     def part(self) -> int:
         """ROT, TRANS or SCALE."""
         return SCALE if self.kind == KIND_SCALE else TRANS if self.kind == KIND_TRANSLATION else ROT
+
+
+@dataclass
+class Fitted:
+    """What a track's keys were last fitted to (:func:`untouched_keys`): its values, and which
+    frames' budgets and half-way budgets have changed since (None: none). Budgets only ever go
+    down (tightened by a factor in [0, 1], or to the minimum with a wanted value), so a frame
+    whose budget changed once differs from the fitted one for good: marks of each change, not a
+    copy of every budget (F numbers a track)."""
+
+    values: np.ndarray
+    budget_moved: np.ndarray | None = None   # (F,) bool
+    half_moved: np.ndarray | None = None     # (F-1,) bool
+
+    @classmethod
+    def of(cls, track: "Track") -> "Fitted":
+        """The state of ``track`` now; a NaN budget counts as changed, as ``NaN != NaN`` says."""
+        budget = np.isnan(track.budget)
+        half = None if track.half_budget is None else np.isnan(track.half_budget)
+        return cls(track.values, budget if budget.any() else None,
+                   half if half is not None and half.any() else None)
+
+    def mark_budget(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Frames ``rows`` of the budget changed where ``moved`` is True."""
+        if self.budget_moved is None:
+            if not moved.any():
+                return
+            self.budget_moved = np.zeros(len(self.values), dtype=bool)
+        self.budget_moved[rows] |= moved
+
+    def mark_half(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Intervals ``rows`` of the half-way budget changed where ``moved`` is True."""
+        if self.half_moved is None:
+            if not moved.any():
+                return
+            self.half_moved = np.zeros(max(len(self.values) - 1, 0), dtype=bool)
+        self.half_moved[rows] |= moved
 
 
 # ------------------------------------------------------------------------ track construction
@@ -311,15 +348,15 @@ def untouched_keys(track: Track) -> np.ndarray | None:
     curve changes only where it has to."""
     if track.fitted is None or track.keys is None:
         return None
-    values, budget, half = track.fitted
-    if values.shape != track.values.shape:
+    fitted = track.fitted
+    if fitted.values.shape != track.values.shape:
         return None
-    dirty = (budget != track.budget) | np.any(values != track.values, axis=1)
-    if half is not None or track.half_budget is not None:
-        now = track.half_budget if track.half_budget is not None else np.full(len(dirty) - 1, np.inf)
-        moved = (half if half is not None else np.full(len(dirty) - 1, np.inf)) != now
-        dirty[:-1] |= moved
-        dirty[1:] |= moved
+    dirty = np.any(fitted.values != track.values, axis=1)
+    if fitted.budget_moved is not None:
+        dirty |= fitted.budget_moved
+    if fitted.half_moved is not None:
+        dirty[:-1] |= fitted.half_moved
+        dirty[1:] |= fitted.half_moved
     keys = np.asarray(track.keys, dtype=np.int64)
     seen = np.concatenate(([0], np.cumsum(dirty)))
     idx = np.arange(len(keys))
@@ -616,8 +653,7 @@ class KeyframeFitter:
         keep = untouched_keys(track) if self.local_refits else None
         fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
         if self.local_refits:
-            track.fitted = (track.values, track.budget.copy(),
-                            None if track.half_budget is None else track.half_budget.copy())
+            track.fitted = Fitted.of(track)
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -767,7 +803,12 @@ class KeyframeFitter:
         frames = self.frames
 
         def repair(errors: np.ndarray) -> Callable[[], None]:
-            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
+            def moved(k: int, rows: np.ndarray) -> None:
+                fitted = tracks[order[k]].fitted
+                if fitted is not None:
+                    fitted.mark_budget(rows)
+            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units,
+                                  moved=moved))
             if half is not None:
                 changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
             refit = {order[c] for c in changed}
@@ -899,7 +940,11 @@ class HalfwayHold:
             if t.half_budget is None:
                 t.half_budget = np.full(len(self.smooth), np.inf)
             if np.any(wanted < t.half_budget[at]):
-                t.half_budget[at] = np.minimum(t.half_budget[at], wanted)
+                old = t.half_budget[at]
+                new = np.minimum(old, wanted)
+                if t.fitted is not None:
+                    t.fitted.mark_half(new != old, at)
+                t.half_budget[at] = new
                 changed.append(k)
         return changed
 

@@ -117,13 +117,15 @@ def tighten(
     tolerance_units: np.ndarray,
     radius: int = 1,
     factor: float = 0.7,
+    moved: Callable[[int, np.ndarray], None] | None = None,
 ) -> list[int]:
     """Lower the per-frame budgets of every track on a failing chain, around failing frames.
 
     ``errors_units`` (F, N) is the error measured through the runtime. Where it exceeds the
     tolerance, the budget of each track that moves the failing point is multiplied by
     ``min(factor, 0.95 * tolerance / error)`` on the failing frames and ``radius`` frames
-    around them. Returns the indices of the tracks whose budgets changed.
+    around them. Returns the indices of the tracks whose budgets changed; ``moved(t, rows)``,
+    when given, is told which frames of track t's budget changed value (F,) bool.
     """
     changed: list[int] = []
     rows, ratio = failing_ratios(errors_units, tolerance_units)
@@ -135,7 +137,12 @@ def tighten(
         spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius, rows, frames)
         if spread is None:
             continue
-        budget *= spread[:frames]
+        if moved is None:
+            budget *= spread[:frames]
+        else:
+            new = budget * spread[:frames]
+            moved(t, new != budget)
+            budget[...] = new
         changed.append(t)
     return changed
 
