@@ -30,7 +30,7 @@ from .kinematics import (held_intervals, interval_motion, shared_world_positions
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+from .tolerance import (ClipCheck, OverRows, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         budget_multipliers, failing_ratios, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
@@ -863,15 +863,21 @@ class HalfwayHold:
         step, turn = interval_motion(motion, world)
         self.smooth = held_intervals(step, turn, cm_per_unit)
         self.factor = factor
+        self.frame_tolerance = tol_units
         self.tolerance = factor * tol_units
-        self.fails = np.zeros(len(self.smooth), dtype=np.int64)
+        # Repairs an interval has failed: only whether more than RELEASE_AFTER counts, and a
+        # clip has at most max_repairs + 1 checks (int32, not F - 1 int64).
+        self.fails = np.zeros(len(self.smooth), dtype=np.int32)
         self.released = np.zeros(len(self.smooth), dtype=bool)
         self.rounds = 0
 
-    def held(self, half_errors: np.ndarray) -> np.ndarray:
+    def held(self, half_errors: "np.ndarray | OverRows") -> "np.ndarray | OverRows":
         """Half-way errors (F-1, N) with the intervals not held zeroed, in place (the
         errors are the check's own array): no copy of a long clip's (F-1, N)."""
-        half_errors[~(self.smooth & ~self.released)] = 0.0
+        if isinstance(half_errors, OverRows):
+            half_errors.zero(~(self.smooth & ~self.released))
+        else:
+            half_errors[~(self.smooth & ~self.released)] = 0.0
         return half_errors
 
     def stacked(self, tol_units: np.ndarray) -> RowTolerance:
@@ -880,32 +886,30 @@ class HalfwayHold:
 
     def check(self, check: ClipCheck) -> ClipCheck:
         """``check`` on the frames, then on the held half-way samples (``check(payload,
-        halfway=True)``, zero where not held), as one (2F-1, N) array; counts the repairs
-        each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
-        def both(payload: bytes) -> np.ndarray:
+        halfway=True)``, zero where not held), as one (2F-1, N) :class:`OverRows` (the rows over
+        the frames' tolerance, then those over the half-way one: all the repairs read); counts
+        the repairs each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
+        def both(payload: bytes) -> OverRows:
             self.rounds += 1
-            frames = len(self.smooth) + 1
-            # One (2F-1, N) array the two checks are copied into as they come (each is freed
-            # at once), not the two, their held copies and their concatenation.
-            out = np.empty((2 * frames - 1, len(self.tolerance)))
-            half = out[frames:]
-            if fills:  # written in place (encode.RuntimeCheck), else copied
-                check(payload, halfway=True, out=half)
+            # Rows within the tolerance are never held (a long clip's (2F-1) x N numbers, most
+            # of them within): the check keeps the others as it goes, or they are picked out.
+            if sparse:
+                half = check(payload, halfway=True, over=self.tolerance)
             else:
-                half[...] = check(payload, halfway=True)
+                half = OverRows.of(check(payload, halfway=True), self.tolerance)
             self.held(half)
-            over = np.any(half > self.tolerance[None, :], axis=1)
-            self.fails += over
+            over = half.rows[np.any(half.over(self.tolerance), axis=1)]
+            self.fails[over] += 1
             self.released |= self.fails > self.RELEASE_AFTER
             if self.rounds > self.HOLD_ROUNDS:
-                self.released |= over
-            if fills:
-                check(payload, out=out[:frames])
+                self.released[over] = True
+            if sparse:
+                frames = check(payload, over=self.frame_tolerance)
             else:
-                out[:frames] = check(payload)
+                frames = OverRows.of(check(payload), self.frame_tolerance)
             self.held(half)
-            return out
-        fills = getattr(check, "fills_out", False)
+            return OverRows.stack(frames, half)
+        sparse = getattr(check, "over_rows", False)
         return both
 
     def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
@@ -917,11 +921,15 @@ class HalfwayHold:
         to frames), and at most :attr:`factor` times its frame budgets. A track without
         half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
         changed: list[int] = []
-        over = self.held(half_errors) > self.tolerance[None, :]  # (zeroed in place)
+        if isinstance(half_errors, OverRows):  # (zeroed in place)
+            rows, over = half_errors.rows, self.held(half_errors).over(self.tolerance)
+        else:
+            over = self.held(half_errors) > self.tolerance[None, :]
+            rows = np.arange(len(over))
         if not over.any():
             return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across
-            at = np.flatnonzero(np.any(over[:, reach.affects[k]], axis=1))
+            at = rows[np.any(over[:, reach.affects[k]], axis=1)]
             if len(at):  # and their neighbours: a curve's tangent there spans the jump
                 flips = at[_parameter_flips(t, at)]
                 self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
