@@ -57,6 +57,7 @@ def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, 
     short = encode_motions([m], units, codec, Tolerance(1.0)).asset
     monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
     for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
+                         (mocodec.keyframes, "SPAN_CHUNK"),
                          (mocodec.kinematics, "HALFWAY_CHUNK"), (mocodec.kinematics, "POSE_CHUNK"),
                          (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),
                          (mocodec.tolerance, "RATIO_CHUNK")]:

@@ -15,7 +15,7 @@ import numpy as np
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import (halfway_chunks, halfway_positions, motion_world, shared_world_positions,
-                         short_clip)
+                         short_clip, world_position_chunks)
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
@@ -107,10 +107,12 @@ class RuntimeCheck:
                 runs = world_error_runs(asset, 0, self._halfway[i], 0.5)
             else:
                 runs = world_error_chunk_runs(asset, 0, halfway_chunks(m, CHUNK_FRAMES), 0.5)
-        else:
+        elif short_clip(m):
             if i not in self._originals:
                 self._originals[i] = shared_world_positions(m)  # the fitter's own, if it holds it
             runs = world_error_runs(asset, 0, self._originals[i])
+        else:  # a long clip's originals posed a run at a time on every call, as half-way
+            runs = world_error_chunk_runs(asset, 0, world_position_chunks(m, CHUNK_FRAMES))
         if over is not None:  # only the rows over ``over`` kept: the same numbers there
             return OverRows.gather(runs, shape, over)
         out = np.empty(shape) if out is None else out

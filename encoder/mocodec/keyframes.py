@@ -26,7 +26,7 @@ from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
 from .kinematics import (held_intervals, interval_motion, shared_world_positions, short_clip,
-                         world_rotations)
+                         world_position_chunks, world_rotations)
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
@@ -478,18 +478,23 @@ class Compensation:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.pos_w = shared_world_positions(motion)  # the runtime check's originals too
-        # A long clip's world rotations are not held (F x N x 4 float64): each target builds its
-        # node's from the local rotations along its chain (_world_rotation), as forward
-        # kinematics does; a short clip's are computed once.
+        # A long clip's world poses are not held (F x N x 7 float64): each target builds its
+        # node's rotation and its points' positions along their chains (_world_pose), the
+        # products forward kinematics makes, and the spans below measure them a run of frames at
+        # a time; a short clip's are computed once (the positions shared with the runtime check).
         self.chains = [self._chain(i) for i in range(sk.node_count)]
-        self.rot_w = world_rotations(motion) if short_clip(motion) else None
+        short = short_clip(motion)
+        self.pos_w = shared_world_positions(motion) if short else None
+        self.rot_w = world_rotations(motion) if short else None
+        scales = motion.scales
+        self.scaled = not (scales.ndim == 3 and scales.strides[0] == 0 and np.all(scales[0] == 1.0))
+        self._spans: dict[tuple[int, int], float] = {}
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
         self.has_trans = [bool(a) for a in animated[:, TRANS]]
         self.has_scale = [bool(a) for a in animated[:, SCALE]]
-        self.aim = [self._aim_points(i) for i in range(sk.node_count)]
+        self.aim = self._aim_points()
         nodes, parts = [], []
         for i in range(sk.node_count):
             for part in (ROT, TRANS, SCALE):
@@ -503,19 +508,42 @@ class Compensation:
     def track_is_rot(self) -> list[bool]:
         return [p == ROT for p in self.track_parts]
 
-    def _aim_points(self, i: int) -> list[int]:
-        """The nearest descendants in each branch that sit away from node i (skipping
-        zero-length bones): the points i's rotation aims."""
+    def _aim_points(self) -> list[list[int]]:
+        """Per node i, the nearest descendants in each branch that sit away from it (skipping
+        zero-length bones): the points i's rotation aims. The spans of a node and its children
+        are measured for every node at once, then those of the nodes below a zero-length bone,
+        and so on (one pass over a long clip's poses each)."""
         sk = self.motion.skeleton
-        out: list[int] = []
-        stack = sk.children(i)
-        while stack:
-            c = stack.pop(0)
-            d = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
-            if d > 1e-6:
-                out.append(c)
-            else:
-                stack.extend(sk.children(c))
+        frontier = [(i, c) for i in range(sk.node_count) for c in sk.children(i)]
+        while frontier:
+            spans = self._over_frames(lambda pos: np.array(
+                [np.linalg.norm(pos[:, c] - pos[:, i], axis=-1).max() for i, c in frontier]))
+            self._spans.update(zip(frontier, (float(d) for d in spans)))
+            frontier = [(i, g) for (i, c), d in zip(frontier, spans) if not d > 1e-6 for g in sk.children(c)]
+        aims = []
+        for i in range(sk.node_count):
+            out: list[int] = []
+            stack = sk.children(i)
+            while stack:
+                c = stack.pop(0)
+                if self._spans[(i, c)] > 1e-6:
+                    out.append(c)
+                else:
+                    stack.extend(sk.children(c))
+            aims.append(out)
+        return aims
+
+    def _over_frames(self, measure: Callable[[np.ndarray], np.ndarray],
+                     rows_too: bool = False) -> np.ndarray:
+        """The largest of ``measure(positions)`` (an array) over the clip's world positions
+        (F, N, 3), given a run of frames at a time when they are not held (the largest of the
+        runs' largest, the same number); with ``rows_too`` measure takes (positions, rows)."""
+        if self.pos_w is not None:
+            return measure(self.pos_w, slice(None)) if rows_too else measure(self.pos_w)
+        out = None
+        for rows, pos in world_position_chunks(self.motion, SPAN_CHUNK):
+            m = measure(pos, rows) if rows_too else measure(pos)
+            out = m if out is None else np.maximum(out, m)
         return out
 
     def _reach(self) -> TrackReach:
@@ -538,14 +566,18 @@ class Compensation:
                 # A scale error ds moves a point w away by about |ds| |w| / |s| (s the node's
                 # local scale); where s is near 0 the subtree has shrunk onto the node too.
                 s = np.maximum(np.abs(self.motion.scales[:, i]).min(axis=-1), 1e-2)
-                dist = np.linalg.norm(self.pos_w[:, below] - self.pos_w[:, i:i + 1], axis=-1)
                 affects[k, below] = True
-                lever[k, below] = np.maximum((dist / s[:, None]).max(axis=0) if dist.size else 0.0, 1e-9)
+                if below.any():
+                    far = self._over_frames(lambda pos, rows: (
+                        np.linalg.norm(pos[:, below] - pos[:, i:i + 1], axis=-1) / s[rows, None]).max(axis=0), True)
+                    lever[k, below] = np.maximum(far, 1e-9)
+                else:
+                    lever[k, below] = 1e-9
                 continue
             affects[k, i] = True
             lever[k, i] = self.shell
             for c in self.aim[i]:
-                bone = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
+                bone = self._spans[(i, c)]
                 below = anc[c]
                 affects[k, below] = True
                 lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
@@ -572,13 +604,11 @@ class Compensation:
     def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
         """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
         made continuous), its decoded position ``pos_i`` there."""
-        orig = self._world_rotation(i, frames)
-        here = self.pos_w[frames, i]
         aim = self.aim[i]
+        orig, here, points = self._world_pose(i, frames)
         # The aim points (their columns alone: on ``frames``, not every node's), then the shell
         # vertices; each set rotated in one call.
-        there = (np.stack([self.pos_w[frames, c] for c in aim], axis=1) if aim
-                 else np.empty((len(orig), 0, 3)))
+        there = np.stack(points, axis=1) if aim else np.empty((len(orig), 0, 3))
         shell = np.eye(3) * self.shell
         vs = np.concatenate((R.quat_rotate(R.quat_conjugate(orig)[:, None], there - here[:, None]),
                              np.broadcast_to(shell, (len(orig), 3, 3))), axis=1)
@@ -593,22 +623,42 @@ class Compensation:
             chain.append(int(self.motion.skeleton.parents[chain[-1]]))
         return chain[::-1]
 
-    def _world_rotation(self, i: int, frames: slice | np.ndarray) -> np.ndarray:
-        """The original world rotation of node i on ``frames`` (n, 4): its chain's local
-        rotations multiplied from the root down, the products forward kinematics makes (the
-        same numbers)."""
-        if self.rot_w is not None:
-            return self.rot_w[frames, i]
-        rotations = self.motion.rotations
-        chain = self.chains[i]
-        world = np.array(rotations[frames, chain[0]], dtype=np.float64)
-        for a in chain[1:]:
-            world = R.quat_multiply(world, rotations[frames, a])
-        return world
+    def _world_pose(self, i: int, frames: slice | np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """The original world rotation (n, 4) and position (n, 3) of node i on ``frames``, and
+        the positions of its aim points: a long clip's posed along their chains from the root
+        down, the products and sums forward kinematics makes (the same numbers)."""
+        if self.pos_w is not None:
+            return self.rot_w[frames, i], self.pos_w[frames, i], [self.pos_w[frames, c] for c in self.aim[i]]
+        m = self.motion
+        rot, pos, scale = m.rotations, m.translations, m.scales
+        world: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+
+        def pose(a: int) -> None:
+            p = int(m.skeleton.parents[a])
+            r, t = np.array(rot[frames, a], dtype=np.float64), np.array(pos[frames, a], dtype=np.float64)
+            s = np.array(scale[frames, a], dtype=np.float64) if self.scaled else None
+            if p < 0:
+                world[a] = (r, t, s)
+                return
+            pr, pp, ps = world[p]
+            world[a] = (R.quat_multiply(pr, r), pp + R.quat_rotate(pr, t if ps is None else ps * t),
+                        None if ps is None else ps * s)
+        for a in self.chains[i]:
+            pose(a)
+        points = []
+        for c in self.aim[i]:
+            for a in self.chains[c][len(self.chains[i]):]:
+                if a not in world:
+                    pose(a)
+            points.append(world[c][1])
+        return world[i][0], world[i][1], points
 
 
 TARGET_CHUNK = 8192
 """Frames :meth:`Compensation.rotation_target` fits at a time."""
+
+SPAN_CHUNK = 4096
+"""Frames a long clip's :class:`Compensation` poses at a time to measure its bones' spans."""
 
 
 class KeyframeFitter:
@@ -790,7 +840,9 @@ class KeyframeFitter:
                 t = Track(i, KIND_SCALE, sc.copy(), sc, np.zeros(4), np.zeros(3))
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
-            t.budget = np.full(self.frames, float(b))
+            # One number broadcast over the frames until a repair tightens it (read-only: tighten
+            # gives the track its own array then), not F of them for every track.
+            t.budget = np.broadcast_to(float(b), (self.frames,))
             t.split = self.split
             tracks[(i, part)] = t
             order.append((i, part))
@@ -807,8 +859,10 @@ class KeyframeFitter:
                 fitted = tracks[order[k]].fitted
                 if fitted is not None:
                     fitted.mark_budget(rows)
-            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units,
-                                  moved=moved))
+            budgets = [tracks[k].budget for k in order]
+            changed = set(tighten(budgets, reach, errors[:frames], self.tol_units, moved=moved))
+            for k, budget in zip(order, budgets):  # a broadcast budget tightened is a new array
+                tracks[k].budget = budget
             if half is not None:
                 changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
             refit = {order[c] for c in changed}

@@ -125,7 +125,9 @@ def tighten(
     tolerance, the budget of each track that moves the failing point is multiplied by
     ``min(factor, 0.95 * tolerance / error)`` on the failing frames and ``radius`` frames
     around them. Returns the indices of the tracks whose budgets changed; ``moved(t, rows)``,
-    when given, is told which frames of track t's budget changed value (F,) bool.
+    when given, is told which frames of track t's budget changed value (F,) bool. A budget that
+    is not writeable (one number broadcast over the frames) is replaced in ``budgets`` by the
+    tightened array.
     """
     changed: list[int] = []
     rows, ratio = failing_ratios(errors_units, tolerance_units)
@@ -137,12 +139,13 @@ def tighten(
         spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius, rows, frames)
         if spread is None:
             continue
-        if moved is None:
-            budget *= spread[:frames]
-        else:
-            new = budget * spread[:frames]
+        new = budget * spread[:frames]
+        if moved is not None:
             moved(t, new != budget)
+        if budget.flags.writeable:
             budget[...] = new
+        else:
+            budgets[t] = new
         changed.append(t)
     return changed
 
