@@ -99,7 +99,7 @@ class Track:
 
     node: int
     kind: int
-    values: np.ndarray        # (F, d) parameters on every frame
+    values: np.ndarray        # (F, d) parameters on every frame (an MRP track's derived from ``flips``)
     target: np.ndarray        # (F, 4) original local rotation or (F, 3) translation / scale
     ref: np.ndarray           # (4,) reference quaternion (float32-exact), rotations only
     axis: np.ndarray          # (3,) twist axis (float32-exact), kind 2 only
@@ -118,6 +118,32 @@ class Track:
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (None, inf: not held)
     fitted: "Fitted | None" = None  # what its keys were last fitted to (local refits)
     mrp_limit: float = TWIST_MRP_LIMIT  # largest |p| a retarget keeps (SWING_MRP_SWITCH for swinging_mrp_track)
+    # An MRP track built here holds no values (F x 3 numbers): they are its target relative to
+    # the reference, each frame on the side ``flips`` (F,) bool says, as MRPs (mrp_values).
+    flips: np.ndarray | None = None
+
+    @property
+    def derived(self) -> bool:
+        """Whether the values are derived from the target (:attr:`flips`), not held."""
+        return self.__dict__.get("_values") is None and self.flips is not None
+
+    @property
+    def frames(self) -> int:
+        return len(self.target) if self.derived else len(self.__dict__["_values"])
+
+    @property
+    def value_shape(self) -> tuple[int, ...]:
+        return (len(self.target), 3) if self.derived else self.__dict__["_values"].shape
+
+    def values_at(self, rows: np.ndarray | slice) -> np.ndarray:
+        """The values on frames ``rows`` (derived there alone when not held)."""
+        if self.derived:
+            return mrp_values(self.ref, self.target[rows], self.flips[rows])
+        return self.__dict__["_values"][rows]
+
+    def take_values(self, other: "Track") -> None:
+        """Hold ``other``'s values as it does (held, or derived from its target and flips)."""
+        self.__dict__["_values"], self.flips = other.__dict__["_values"], other.flips
 
     @property
     def is_rotation(self) -> bool:
@@ -129,6 +155,42 @@ class Track:
         return SCALE if self.kind == KIND_SCALE else TRANS if self.kind == KIND_TRANSLATION else ROT
 
 
+def _get_values(track: Track) -> np.ndarray:
+    if track.derived:
+        return mrp_values(track.ref, track.target, track.flips)
+    return track.__dict__["_values"]
+
+
+def _set_values(track: Track, values: np.ndarray) -> None:
+    fitted = track.__dict__.get("fitted")
+    if fitted is not None:  # what the fit saw changes where these differ (untouched_keys)
+        old = track.values
+        if old is not None and old.shape == np.shape(values):
+            fitted.mark_values(np.any(old != values, axis=1))
+        else:
+            fitted.shape = ()  # another shape: no key stays
+    track.__dict__["_values"] = values
+
+
+# A property over the dataclass field, so that every reader of ``values`` gets an MRP track's
+# derived ones (set: held ones, which take precedence over flips).
+Track.values = property(_get_values, _set_values)  # type: ignore[assignment]
+
+
+def mrp_values(ref: np.ndarray, target: np.ndarray, flips: np.ndarray) -> np.ndarray:
+    """MRPs (n, 3) of rotations ``target`` (n, 4) relative to ``ref``, on the other side where
+    ``flips``: the products and signs the track's builders make (:func:`_rotation_track_from`,
+    :func:`_retarget_kept`), so the same numbers."""
+    rel = R.quat_multiply(R.quat_conjugate(ref), target)
+    rel *= np.where(flips, -1.0, 1.0)[:, None]
+    return R.mrp_from_quat(rel)
+
+
+def _flips(rel: np.ndarray, ref: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Which rows of ``rel`` (n, 4), each exactly one of +-(conj(ref) target), are the minus one."""
+    return np.sum(rel * R.quat_multiply(R.quat_conjugate(ref), target), axis=1) < 0.0
+
+
 @dataclass
 class Fitted:
     """What a track's keys were last fitted to (:func:`untouched_keys`): its values, and which
@@ -137,24 +199,37 @@ class Fitted:
     whose budget changed once differs from the fitted one for good: marks of each change, not a
     copy of every budget (F numbers a track)."""
 
-    values: np.ndarray
+    shape: tuple[int, ...]
     budget_moved: np.ndarray | None = None   # (F,) bool
     half_moved: np.ndarray | None = None     # (F-1,) bool
+    values_moved: np.ndarray | None = None   # (F,) bool
 
     @classmethod
-    def of(cls, track: "Track") -> "Fitted":
-        """The state of ``track`` now; a NaN budget counts as changed, as ``NaN != NaN`` says."""
+    def of(cls, track: "Track", values: np.ndarray | None = None) -> "Fitted":
+        """The state of ``track`` now (``values``: its values, when at hand); a NaN budget or
+        value counts as changed, as ``NaN != NaN`` says."""
+        values = track.values if values is None else values
         budget = np.isnan(track.budget)
         half = None if track.half_budget is None else np.isnan(track.half_budget)
-        return cls(track.values, budget if budget.any() else None,
-                   half if half is not None and half.any() else None)
+        moved = np.isnan(values).any(axis=1)
+        return cls(values.shape, budget if budget.any() else None,
+                   half if half is not None and half.any() else None, moved if moved.any() else None)
+
+    def mark_values(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Frames ``rows`` of the values changed where ``moved`` is True (a track is refitted
+        after every retarget, so a mark is a difference from the fitted values)."""
+        if self.values_moved is None:
+            if not moved.any():
+                return
+            self.values_moved = np.zeros(self.shape[0], dtype=bool)
+        self.values_moved[rows] |= moved
 
     def mark_budget(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
         """Frames ``rows`` of the budget changed where ``moved`` is True."""
         if self.budget_moved is None:
             if not moved.any():
                 return
-            self.budget_moved = np.zeros(len(self.values), dtype=bool)
+            self.budget_moved = np.zeros(self.shape[0], dtype=bool)
         self.budget_moved[rows] |= moved
 
     def mark_half(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
@@ -162,7 +237,7 @@ class Fitted:
         if self.half_moved is None:
             if not moved.any():
                 return
-            self.half_moved = np.zeros(max(len(self.values) - 1, 0), dtype=bool)
+            self.half_moved = np.zeros(max(self.shape[0] - 1, 0), dtype=bool)
         self.half_moved[rows] |= moved
 
 
@@ -229,7 +304,8 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     with np.errstate(invalid="ignore", divide="ignore"):  # a frame at the antipode: NaN, not <= 1
         p = R.mrp_from_quat(rel)
     if np.max(np.linalg.norm(p, axis=1)) <= TWIST_MRP_LIMIT:
-        return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes)
+        del p  # derived from q where read (mrp_values): not held
+        return Track(node, KIND_MRP, None, q, ref, np.zeros(3), ref_codes=ref_codes, flips=_flips(rel, ref, q))
     twist = _twist_track_from(q, rel, motion, node)
     every = np.arange(len(q) - 1)
     flips = int(np.count_nonzero(_parameter_flips(twist, every)))
@@ -291,8 +367,9 @@ def swinging_mrp_track(q: np.ndarray, node: int, ref_codes: np.ndarray, ref: np.
         k = max(k, f - 1)
         side[f:k + 1] = s
         s, f = -s, k + 1
-    p = R.mrp_from_quat(rel * side[:, None])
-    return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes, mrp_limit=SWING_MRP_SWITCH)
+    rel = rel * side[:, None]
+    return Track(node, KIND_MRP, None, q, ref, np.zeros(3), ref_codes=ref_codes, mrp_limit=SWING_MRP_SWITCH,
+                 flips=_flips(rel, ref, q))
 
 
 def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
@@ -349,9 +426,11 @@ def untouched_keys(track: Track) -> np.ndarray | None:
     if track.fitted is None or track.keys is None:
         return None
     fitted = track.fitted
-    if fitted.values.shape != track.values.shape:
+    if fitted.shape != track.value_shape:
         return None
-    dirty = np.any(fitted.values != track.values, axis=1)
+    dirty = np.zeros(fitted.shape[0], dtype=bool)
+    if fitted.values_moved is not None:
+        dirty |= fitted.values_moved
     if fitted.budget_moved is not None:
         dirty |= fitted.budget_moved
     if fitted.half_moved is not None:
@@ -380,15 +459,16 @@ def _within_budget(deviation: Callable[[np.ndarray], np.ndarray], budget: np.nda
 
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
-              keep: np.ndarray | None = None) -> None:
+              keep: np.ndarray | None = None, values: np.ndarray | None = None) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
     ``half_budget`` is held to its target's half-way path too (constants are judged on the
     frames: half-way, a constant is as far from the target as on one of the two frames at
-    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`)."""
+    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`); ``values``:
+    the track's values, when at hand."""
     err = _track_error(track)
-    frames = len(track.values)
+    frames = track.frames
     half_budget = track.half_budget if frames > 1 else None
     if half_budget is not None:
         err.half_target = halfway_target(track)
@@ -411,13 +491,14 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
     track.constant = None
     if keep is not None and len(keep):
         mandatory = np.union1d(mandatory, keep)
+    values = track.values if values is None else values  # derived once for the fit
     while True:
         step = _quant_steps(track, fraction)
         try:
-            qz = quantizer_for(track.values.min(axis=0), track.values.max(axis=0), step)
+            qz = quantizer_for(values.min(axis=0), values.max(axis=0), step)
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
-        keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
+        keys, key_values, ok = fit_keys(values, track.budget, err, mandatory, qz.roundtrip,
                                         start=track.keys, grid=grid, split=track.split,
                                         half_budget=half_budget)
         track.keys, track.key_values, track.quantizer, track.recon = keys, key_values, qz, None
@@ -701,9 +782,11 @@ class KeyframeFitter:
     def _fit(self, track: Track) -> None:
         self._fits += 1  # a pass tells a node's refitted tracks by this count
         keep = untouched_keys(track) if self.local_refits else None
-        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
+        values = track.values  # an MRP track's derived once for the fit and its state
+        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep,
+                  values)
         if self.local_refits:
-            track.fitted = Fitted.of(track)
+            track.fitted = Fitted.of(track, values)
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -1019,7 +1102,7 @@ def _parameter_flips(track: Track, at: np.ndarray) -> np.ndarray:
     both frames do not help there, so the hold does not try."""
     if track.kind in VECTOR_KINDS or not len(at):
         return np.zeros(len(at), dtype=bool)
-    mid = _track_error(track).decoded(0.5 * (track.values[at] + track.values[at + 1]))
+    mid = _track_error(track).decoded(0.5 * (track.values_at(at) + track.values_at(at + 1)))
     off = R.quat_angle(halfway_target(track, at), mid)
     return off > 0.5 * R.quat_angle(track.target[at], track.target[at + 1]) + 1e-9
 
@@ -1070,7 +1153,7 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
     if track.target is None or track.kind not in (KIND_MRP, KIND_TWIST):
         return False
     at = slice(None) if rows is None else rows
-    old_q, old_v = track.target[at], track.values[at]
+    old_q, old_v = track.target[at], track.values_at(at)
     if old_q.shape != np.shape(target):
         return False
     q = np.array(target, dtype=np.float64)
@@ -1083,13 +1166,23 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
         rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(track.axis, theta)), q)
         old_p = old_v[:, 1:]
     rel = R.quat_multiply(R.quat_conjugate(track.ref), rest)
-    rel[np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0] *= -1.0
+    other = np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0
+    rel[other] *= -1.0
     p = R.mrp_from_quat(rel)
     if len(p) and np.max(np.linalg.norm(p, axis=1)) > track.mrp_limit:
         return False
-    values, full = track.values.copy(), track.target.copy()
-    values[at] = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    new_v = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    full = track.target.copy()
     full[at] = q
+    if track.derived:  # (MRP) its values are mrp_values of the new target with these flips
+        if track.fitted is not None:  # (held values mark it as they are set)
+            track.fitted.mark_values(np.any(new_v != old_v, axis=1), at)
+        flips = track.flips.copy()
+        flips[at] = other
+        track.target, track.flips, track.recon = full, flips, None
+        return True
+    values = track.values.copy()
+    values[at] = new_v
     track.values, track.target, track.recon = values, full, None
     return True
 
@@ -1100,15 +1193,17 @@ def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> No
     track.recon = None
     if fresh.kind != track.kind:
         track.keys = None  # the old keys belong to another parameterisation
-    track.kind, track.values, track.target, track.ref, track.axis = (
-        fresh.kind, fresh.values, fresh.target, fresh.ref, fresh.axis)
+    elif track.fitted is not None and track.target is not None and fresh.value_shape == track.value_shape:
+        track.fitted.mark_values(np.any(fresh.values != track.values, axis=1))
+    track.take_values(fresh)
+    track.kind, track.target, track.ref, track.axis = fresh.kind, fresh.target, fresh.ref, fresh.axis
     track.ref_codes, track.axis_codes, track.mrp_limit = fresh.ref_codes, fresh.axis_codes, fresh.mrp_limit
 
 
 def _track_values(track: Track) -> np.ndarray:
     """The parameter curve the runtime decodes, on every frame (keys must be set)."""
     return catmull_rom(track.keys, track.quantizer.roundtrip(track.key_values),
-                       np.arange(len(track.values), dtype=np.float64), track.split)
+                       np.arange(track.frames, dtype=np.float64), track.split)
 
 
 def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
@@ -1116,7 +1211,7 @@ def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     scale (with ``keep``, kept on the track until it is fitted again)."""
     if track.recon is not None:
         return track.recon
-    frames = len(track.values)
+    frames = track.frames
     if track.keys is None:
         recon = np.broadcast_to(track.constant, (frames, 3 if track.kind in VECTOR_KINDS else 4))
     else:
