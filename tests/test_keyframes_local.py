@@ -11,7 +11,7 @@ from mocodec import rotations as R
 from mocodec.curves import KIND_MRP, KIND_TWIST
 from mocodec.encode import encode_motions
 from mocodec.io import read_bvh
-from mocodec.keyframes import (Track, _retarget, _retarget_kept, _track_recon, fit_track,
+from mocodec.keyframes import (Fitted, Track, _retarget, _retarget_kept, _track_recon, fit_track,
                                untouched_keys)
 from mocodec.motion import Motion
 from mocodec.quantize import StepQuantizer
@@ -54,6 +54,30 @@ def test_a_target_changed_on_some_frames_changes_the_values_only_there(motion, t
     assert np.max(R.quat_angle(decoded, nudged)) < 1e-6  # the stored reference is binary32
 
 
+def test_an_mrp_track_derives_the_values_it_was_built_and_retargeted_with(motion):
+    # An MRP track holds no values (a long clip's F x 3 numbers a track): they are derived from
+    # its target where read, and must be bit for bit those its builders computed.
+    q = _turning(400, 0.2)
+    track = Track(0, KIND_MRP, np.zeros((400, 3)), None, np.zeros(4), np.zeros(3))
+    _retarget(track, q, motion, 1)
+    assert track.kind == KIND_MRP and track.derived
+    rel = R.quat_make_continuous(R.quat_multiply(R.quat_conjugate(track.ref), R.quat_make_continuous(q)))
+    if np.mean(rel[:, 3]) < 0:
+        rel = -rel
+    assert np.array_equal(track.values, R.mrp_from_quat(rel))
+    before = track.values
+    rows = np.arange(150, 170)
+    nudged = -R.quat_multiply(q[rows], R.quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), 0.02))
+    assert _retarget_kept(track, nudged, rows) and track.derived
+    side = nudged * np.where(np.sum(nudged * q[rows], axis=1) < 0.0, -1.0, 1.0)[:, None]
+    moved = R.quat_multiply(R.quat_conjugate(track.ref), side)
+    moved[np.sum(moved * R.quat_from_mrp(before[rows]), axis=1) < 0.0] *= -1.0
+    expected = before.copy()
+    expected[rows] = R.mrp_from_quat(moved)
+    assert np.array_equal(track.values, expected)
+    assert np.array_equal(track.values_at(rows), expected[rows])
+
+
 def test_a_refit_after_a_local_change_keeps_the_curve_elsewhere(motion):
     frames = 600
     x = np.linspace(0, 6, frames)
@@ -63,7 +87,7 @@ def test_a_refit_after_a_local_change_keeps_the_curve_elsewhere(motion):
     track.budget = np.full(frames, 0.01)
     mandatory = np.array([0, frames - 1])
     fit_track(track, mandatory, 0.6, StepQuantizer.for_range)
-    track.fitted = (track.values, track.budget.copy(), None)
+    track.fitted = Fitted.of(track)
     curve = _track_recon(track).copy()
     assert np.array_equal(untouched_keys(track), track.keys)  # nothing changed: every key stays
     bumped = values.copy()

@@ -15,11 +15,11 @@ import numpy as np
 from . import __version__, codecs, limits
 from .container import AssetBuilder, ClipEntry
 from .kinematics import (halfway_chunks, halfway_positions, motion_world, shared_world_positions,
-                         short_clip)
+                         short_clip, world_position_chunks)
 from .metrics import Chunk, ErrorMetric, ErrorReport, SizeReport, raw_acl_bytes, raw_bvh_bytes
 from .motion import Motion
 from .codecs import DEFAULT_CODEC
-from .tolerance import DEFAULT_TOLERANCE_CM, Tolerance, ToleranceNotMet
+from .tolerance import DEFAULT_TOLERANCE_CM, OverRows, Tolerance, ToleranceNotMet
 from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .bake import Runner
@@ -75,9 +75,12 @@ class RuntimeCheck:
     units (half-way between frames (F - 1, N) with ``halfway``), decoded by the C runtime from a
     one-clip asset. It pickles without its cached world positions, and :meth:`one_clip` is the
     check of one clip alone, small enough to send to a worker process. ``out``: an (F, N) or
-    (F - 1, N) array the errors are written into (a long clip's check allocates none)."""
+    (F - 1, N) array the errors are written into (a long clip's check allocates none);
+    ``over``: a tolerance per node (N,), and the errors come as an
+    :class:`~mocodec.tolerance.OverRows` of the rows not within it."""
 
     fills_out = True
+    over_rows = True  # ``over=tolerance``: an OverRows of the rows not within it, not (F, N)
 
     def __init__(self, motions: list[Motion], cm_per_unit: list[float], codec: str) -> None:
         from . import runtime  # noqa: F401  (the binding: fail here, not in the first check)
@@ -90,22 +93,32 @@ class RuntimeCheck:
         self._halfway: dict[int, np.ndarray] = {}  # a short clip's half-way reference, once asked
 
     def __call__(self, i: int, payload: bytes, prefix: bytes = b"", halfway: bool = False,
-                 out: np.ndarray | None = None) -> np.ndarray:
-        from .runtime import CHUNK_FRAMES, Asset, world_error, world_error_chunks
+                 out: np.ndarray | None = None, over: np.ndarray | None = None) -> "np.ndarray | OverRows":
+        from .runtime import CHUNK_FRAMES, Asset, world_error_chunk_runs, world_error_runs
 
         asset = Asset(_single_clip_asset(self.motions[i], self.cm_per_unit[i], self.codec, payload, prefix))
+        m = self.motions[i]
+        shape = (m.frame_count - 1 if halfway else m.frame_count, m.skeleton.node_count)
         if halfway:  # the runtime at x + 1/2 against the original's own half-way pose, a long
             # clip's built a run at a time on every call (never held whole, F x N x 3 float64)
-            m = self.motions[i]
             if short_clip(m):
                 if i not in self._halfway:
                     self._halfway[i] = halfway_positions(m)
-                return world_error(asset, 0, self._halfway[i], 0.5, out=out)
-            return world_error_chunks(asset, 0, halfway_chunks(m, CHUNK_FRAMES),
-                                      (m.frame_count - 1, m.skeleton.node_count), 0.5, out)
-        if i not in self._originals:
-            self._originals[i] = shared_world_positions(self.motions[i])  # the fitter's own, if it holds it
-        return world_error(asset, 0, self._originals[i], out=out)
+                runs = world_error_runs(asset, 0, self._halfway[i], 0.5)
+            else:
+                runs = world_error_chunk_runs(asset, 0, halfway_chunks(m, CHUNK_FRAMES), 0.5)
+        elif short_clip(m):
+            if i not in self._originals:
+                self._originals[i] = shared_world_positions(m)  # the fitter's own, if it holds it
+            runs = world_error_runs(asset, 0, self._originals[i])
+        else:  # a long clip's originals posed a run at a time on every call, as half-way
+            runs = world_error_chunk_runs(asset, 0, world_position_chunks(m, CHUNK_FRAMES))
+        if over is not None:  # only the rows over ``over`` kept: the same numbers there
+            return OverRows.gather(runs, shape, over)
+        out = np.empty(shape) if out is None else out
+        for rows, errors in runs:
+            out[rows] = errors
+        return out
 
     def one_clip(self, i: int, prefix: bytes = b"") -> "OneClipCheck":
         """``check(payload)`` of clip ``i`` alone (of a streamed library: its ref, not its frames)."""
@@ -123,6 +136,7 @@ class OneClipCheck:
     """``check(payload, halfway=False, out=None)``: the error of one clip alone (:meth:`RuntimeCheck.one_clip`)."""
 
     fills_out = True
+    over_rows = True
     runtime: RuntimeCheck
     prefix: bytes = b""
 

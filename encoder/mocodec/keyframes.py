@@ -26,11 +26,11 @@ from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
 from .kinematics import (held_intervals, interval_motion, shared_world_positions, short_clip,
-                         world_rotations)
+                         world_position_chunks, world_rotations)
 from .motion import Motion
 from .quantize import Quantizer
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+from .tolerance import (ClipCheck, OverRows, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
                         budget_multipliers, failing_ratios, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
@@ -99,7 +99,7 @@ class Track:
 
     node: int
     kind: int
-    values: np.ndarray        # (F, d) parameters on every frame
+    values: np.ndarray        # (F, d) parameters on every frame (an MRP track's derived from ``flips``)
     target: np.ndarray        # (F, 4) original local rotation or (F, 3) translation / scale
     ref: np.ndarray           # (4,) reference quaternion (float32-exact), rotations only
     axis: np.ndarray          # (3,) twist axis (float32-exact), kind 2 only
@@ -116,8 +116,34 @@ class Track:
     split: bool = False  # first segment detached (curves.catmull_rom): the capture jumps after frame 0
     rest: np.ndarray | None = None  # the node's f32 rest value (what mode 0 stores for free)
     half_budget: np.ndarray | None = None  # (F-1,) allowed error half-way between frames (None, inf: not held)
-    fitted: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None  # (values, budget, half_budget) its keys were last fitted to (local refits)
+    fitted: "Fitted | None" = None  # what its keys were last fitted to (local refits)
     mrp_limit: float = TWIST_MRP_LIMIT  # largest |p| a retarget keeps (SWING_MRP_SWITCH for swinging_mrp_track)
+    # An MRP track built here holds no values (F x 3 numbers): they are its target relative to
+    # the reference, each frame on the side ``flips`` (F,) bool says, as MRPs (mrp_values).
+    flips: np.ndarray | None = None
+
+    @property
+    def derived(self) -> bool:
+        """Whether the values are derived from the target (:attr:`flips`), not held."""
+        return self.__dict__.get("_values") is None and self.flips is not None
+
+    @property
+    def frames(self) -> int:
+        return len(self.target) if self.derived else len(self.__dict__["_values"])
+
+    @property
+    def value_shape(self) -> tuple[int, ...]:
+        return (len(self.target), 3) if self.derived else self.__dict__["_values"].shape
+
+    def values_at(self, rows: np.ndarray | slice) -> np.ndarray:
+        """The values on frames ``rows`` (derived there alone when not held)."""
+        if self.derived:
+            return mrp_values(self.ref, self.target[rows], self.flips[rows])
+        return self.__dict__["_values"][rows]
+
+    def take_values(self, other: "Track") -> None:
+        """Hold ``other``'s values as it does (held, or derived from its target and flips)."""
+        self.__dict__["_values"], self.flips = other.__dict__["_values"], other.flips
 
     @property
     def is_rotation(self) -> bool:
@@ -127,6 +153,92 @@ class Track:
     def part(self) -> int:
         """ROT, TRANS or SCALE."""
         return SCALE if self.kind == KIND_SCALE else TRANS if self.kind == KIND_TRANSLATION else ROT
+
+
+def _get_values(track: Track) -> np.ndarray:
+    if track.derived:
+        return mrp_values(track.ref, track.target, track.flips)
+    return track.__dict__["_values"]
+
+
+def _set_values(track: Track, values: np.ndarray) -> None:
+    fitted = track.__dict__.get("fitted")
+    if fitted is not None:  # what the fit saw changes where these differ (untouched_keys)
+        old = track.values
+        if old is not None and old.shape == np.shape(values):
+            fitted.mark_values(np.any(old != values, axis=1))
+        else:
+            fitted.shape = ()  # another shape: no key stays
+    track.__dict__["_values"] = values
+
+
+# A property over the dataclass field, so that every reader of ``values`` gets an MRP track's
+# derived ones (set: held ones, which take precedence over flips).
+Track.values = property(_get_values, _set_values)  # type: ignore[assignment]
+
+
+def mrp_values(ref: np.ndarray, target: np.ndarray, flips: np.ndarray) -> np.ndarray:
+    """MRPs (n, 3) of rotations ``target`` (n, 4) relative to ``ref``, on the other side where
+    ``flips``: the products and signs the track's builders make (:func:`_rotation_track_from`,
+    :func:`_retarget_kept`), so the same numbers."""
+    rel = R.quat_multiply(R.quat_conjugate(ref), target)
+    rel *= np.where(flips, -1.0, 1.0)[:, None]
+    return R.mrp_from_quat(rel)
+
+
+def _flips(rel: np.ndarray, ref: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Which rows of ``rel`` (n, 4), each exactly one of +-(conj(ref) target), are the minus one."""
+    return np.sum(rel * R.quat_multiply(R.quat_conjugate(ref), target), axis=1) < 0.0
+
+
+@dataclass
+class Fitted:
+    """What a track's keys were last fitted to (:func:`untouched_keys`): its values, and which
+    frames' budgets and half-way budgets have changed since (None: none). Budgets only ever go
+    down (tightened by a factor in [0, 1], or to the minimum with a wanted value), so a frame
+    whose budget changed once differs from the fitted one for good: marks of each change, not a
+    copy of every budget (F numbers a track)."""
+
+    shape: tuple[int, ...]
+    budget_moved: np.ndarray | None = None   # (F,) bool
+    half_moved: np.ndarray | None = None     # (F-1,) bool
+    values_moved: np.ndarray | None = None   # (F,) bool
+
+    @classmethod
+    def of(cls, track: "Track", values: np.ndarray | None = None) -> "Fitted":
+        """The state of ``track`` now (``values``: its values, when at hand); a NaN budget or
+        value counts as changed, as ``NaN != NaN`` says."""
+        values = track.values if values is None else values
+        budget = np.isnan(track.budget)
+        half = None if track.half_budget is None else np.isnan(track.half_budget)
+        moved = np.isnan(values).any(axis=1)
+        return cls(values.shape, budget if budget.any() else None,
+                   half if half is not None and half.any() else None, moved if moved.any() else None)
+
+    def mark_values(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Frames ``rows`` of the values changed where ``moved`` is True (a track is refitted
+        after every retarget, so a mark is a difference from the fitted values)."""
+        if self.values_moved is None:
+            if not moved.any():
+                return
+            self.values_moved = np.zeros(self.shape[0], dtype=bool)
+        self.values_moved[rows] |= moved
+
+    def mark_budget(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Frames ``rows`` of the budget changed where ``moved`` is True."""
+        if self.budget_moved is None:
+            if not moved.any():
+                return
+            self.budget_moved = np.zeros(self.shape[0], dtype=bool)
+        self.budget_moved[rows] |= moved
+
+    def mark_half(self, moved: np.ndarray, rows: np.ndarray | slice = slice(None)) -> None:
+        """Intervals ``rows`` of the half-way budget changed where ``moved`` is True."""
+        if self.half_moved is None:
+            if not moved.any():
+                return
+            self.half_moved = np.zeros(max(self.shape[0] - 1, 0), dtype=bool)
+        self.half_moved[rows] |= moved
 
 
 # ------------------------------------------------------------------------ track construction
@@ -192,7 +304,8 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
     with np.errstate(invalid="ignore", divide="ignore"):  # a frame at the antipode: NaN, not <= 1
         p = R.mrp_from_quat(rel)
     if np.max(np.linalg.norm(p, axis=1)) <= TWIST_MRP_LIMIT:
-        return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes)
+        del p  # derived from q where read (mrp_values): not held
+        return Track(node, KIND_MRP, None, q, ref, np.zeros(3), ref_codes=ref_codes, flips=_flips(rel, ref, q))
     twist = _twist_track_from(q, rel, motion, node)
     every = np.arange(len(q) - 1)
     flips = int(np.count_nonzero(_parameter_flips(twist, every)))
@@ -254,8 +367,9 @@ def swinging_mrp_track(q: np.ndarray, node: int, ref_codes: np.ndarray, ref: np.
         k = max(k, f - 1)
         side[f:k + 1] = s
         s, f = -s, k + 1
-    p = R.mrp_from_quat(rel * side[:, None])
-    return Track(node, KIND_MRP, p, q, ref, np.zeros(3), ref_codes=ref_codes, mrp_limit=SWING_MRP_SWITCH)
+    rel = rel * side[:, None]
+    return Track(node, KIND_MRP, None, q, ref, np.zeros(3), ref_codes=ref_codes, mrp_limit=SWING_MRP_SWITCH,
+                 flips=_flips(rel, ref, q))
 
 
 def _track_rotations(track: Track, values: np.ndarray) -> np.ndarray:
@@ -311,15 +425,17 @@ def untouched_keys(track: Track) -> np.ndarray | None:
     curve changes only where it has to."""
     if track.fitted is None or track.keys is None:
         return None
-    values, budget, half = track.fitted
-    if values.shape != track.values.shape:
+    fitted = track.fitted
+    if fitted.shape != track.value_shape:
         return None
-    dirty = (budget != track.budget) | np.any(values != track.values, axis=1)
-    if half is not None or track.half_budget is not None:
-        now = track.half_budget if track.half_budget is not None else np.full(len(dirty) - 1, np.inf)
-        moved = (half if half is not None else np.full(len(dirty) - 1, np.inf)) != now
-        dirty[:-1] |= moved
-        dirty[1:] |= moved
+    dirty = np.zeros(fitted.shape[0], dtype=bool)
+    if fitted.values_moved is not None:
+        dirty |= fitted.values_moved
+    if fitted.budget_moved is not None:
+        dirty |= fitted.budget_moved
+    if fitted.half_moved is not None:
+        dirty[:-1] |= fitted.half_moved
+        dirty[1:] |= fitted.half_moved
     keys = np.asarray(track.keys, dtype=np.int64)
     seen = np.concatenate(([0], np.cumsum(dirty)))
     idx = np.arange(len(keys))
@@ -343,15 +459,16 @@ def _within_budget(deviation: Callable[[np.ndarray], np.ndarray], budget: np.nda
 
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
-              keep: np.ndarray | None = None) -> None:
+              keep: np.ndarray | None = None, values: np.ndarray | None = None) -> None:
     """Fold the track to a constant if that is within budget, else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
     ``half_budget`` is held to its target's half-way path too (constants are judged on the
     frames: half-way, a constant is as far from the target as on one of the two frames at
-    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`)."""
+    most). ``keep``: keys that stay whatever the fit finds (:func:`untouched_keys`); ``values``:
+    the track's values, when at hand."""
     err = _track_error(track)
-    frames = len(track.values)
+    frames = track.frames
     half_budget = track.half_budget if frames > 1 else None
     if half_budget is not None:
         err.half_target = halfway_target(track)
@@ -374,13 +491,14 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
     track.constant = None
     if keep is not None and len(keep):
         mandatory = np.union1d(mandatory, keep)
+    values = track.values if values is None else values  # derived once for the fit
     while True:
         step = _quant_steps(track, fraction)
         try:
-            qz = quantizer_for(track.values.min(axis=0), track.values.max(axis=0), step)
+            qz = quantizer_for(values.min(axis=0), values.max(axis=0), step)
         except ValueError as exc:
             raise ToleranceNotMet(f"node {track.node}: {exc}") from None
-        keys, key_values, ok = fit_keys(track.values, track.budget, err, mandatory, qz.roundtrip,
+        keys, key_values, ok = fit_keys(values, track.budget, err, mandatory, qz.roundtrip,
                                         start=track.keys, grid=grid, split=track.split,
                                         half_budget=half_budget)
         track.keys, track.key_values, track.quantizer, track.recon = keys, key_values, qz, None
@@ -441,18 +559,23 @@ class Compensation:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
-        self.pos_w = shared_world_positions(motion)  # the runtime check's originals too
-        # A long clip's world rotations are not held (F x N x 4 float64): each target builds its
-        # node's from the local rotations along its chain (_world_rotation), as forward
-        # kinematics does; a short clip's are computed once.
+        # A long clip's world poses are not held (F x N x 7 float64): each target builds its
+        # node's rotation and its points' positions along their chains (_world_pose), the
+        # products forward kinematics makes, and the spans below measure them a run of frames at
+        # a time; a short clip's are computed once (the positions shared with the runtime check).
         self.chains = [self._chain(i) for i in range(sk.node_count)]
-        self.rot_w = world_rotations(motion) if short_clip(motion) else None
+        short = short_clip(motion)
+        self.pos_w = shared_world_positions(motion) if short else None
+        self.rot_w = world_rotations(motion) if short else None
+        scales = motion.scales
+        self.scaled = not (scales.ndim == 3 and scales.strides[0] == 0 and np.all(scales[0] == 1.0))
+        self._spans: dict[tuple[int, int], float] = {}
         self.shell = shell_cm / cm_per_unit
         animated = motion.animated()
         self.has_rot = [bool(a) for a in animated[:, ROT]]
         self.has_trans = [bool(a) for a in animated[:, TRANS]]
         self.has_scale = [bool(a) for a in animated[:, SCALE]]
-        self.aim = [self._aim_points(i) for i in range(sk.node_count)]
+        self.aim = self._aim_points()
         nodes, parts = [], []
         for i in range(sk.node_count):
             for part in (ROT, TRANS, SCALE):
@@ -466,19 +589,42 @@ class Compensation:
     def track_is_rot(self) -> list[bool]:
         return [p == ROT for p in self.track_parts]
 
-    def _aim_points(self, i: int) -> list[int]:
-        """The nearest descendants in each branch that sit away from node i (skipping
-        zero-length bones): the points i's rotation aims."""
+    def _aim_points(self) -> list[list[int]]:
+        """Per node i, the nearest descendants in each branch that sit away from it (skipping
+        zero-length bones): the points i's rotation aims. The spans of a node and its children
+        are measured for every node at once, then those of the nodes below a zero-length bone,
+        and so on (one pass over a long clip's poses each)."""
         sk = self.motion.skeleton
-        out: list[int] = []
-        stack = sk.children(i)
-        while stack:
-            c = stack.pop(0)
-            d = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
-            if d > 1e-6:
-                out.append(c)
-            else:
-                stack.extend(sk.children(c))
+        frontier = [(i, c) for i in range(sk.node_count) for c in sk.children(i)]
+        while frontier:
+            spans = self._over_frames(lambda pos: np.array(
+                [np.linalg.norm(pos[:, c] - pos[:, i], axis=-1).max() for i, c in frontier]))
+            self._spans.update(zip(frontier, (float(d) for d in spans)))
+            frontier = [(i, g) for (i, c), d in zip(frontier, spans) if not d > 1e-6 for g in sk.children(c)]
+        aims = []
+        for i in range(sk.node_count):
+            out: list[int] = []
+            stack = sk.children(i)
+            while stack:
+                c = stack.pop(0)
+                if self._spans[(i, c)] > 1e-6:
+                    out.append(c)
+                else:
+                    stack.extend(sk.children(c))
+            aims.append(out)
+        return aims
+
+    def _over_frames(self, measure: Callable[[np.ndarray], np.ndarray],
+                     rows_too: bool = False) -> np.ndarray:
+        """The largest of ``measure(positions)`` (an array) over the clip's world positions
+        (F, N, 3), given a run of frames at a time when they are not held (the largest of the
+        runs' largest, the same number); with ``rows_too`` measure takes (positions, rows)."""
+        if self.pos_w is not None:
+            return measure(self.pos_w, slice(None)) if rows_too else measure(self.pos_w)
+        out = None
+        for rows, pos in world_position_chunks(self.motion, SPAN_CHUNK):
+            m = measure(pos, rows) if rows_too else measure(pos)
+            out = m if out is None else np.maximum(out, m)
         return out
 
     def _reach(self) -> TrackReach:
@@ -501,14 +647,18 @@ class Compensation:
                 # A scale error ds moves a point w away by about |ds| |w| / |s| (s the node's
                 # local scale); where s is near 0 the subtree has shrunk onto the node too.
                 s = np.maximum(np.abs(self.motion.scales[:, i]).min(axis=-1), 1e-2)
-                dist = np.linalg.norm(self.pos_w[:, below] - self.pos_w[:, i:i + 1], axis=-1)
                 affects[k, below] = True
-                lever[k, below] = np.maximum((dist / s[:, None]).max(axis=0) if dist.size else 0.0, 1e-9)
+                if below.any():
+                    far = self._over_frames(lambda pos, rows: (
+                        np.linalg.norm(pos[:, below] - pos[:, i:i + 1], axis=-1) / s[rows, None]).max(axis=0), True)
+                    lever[k, below] = np.maximum(far, 1e-9)
+                else:
+                    lever[k, below] = 1e-9
                 continue
             affects[k, i] = True
             lever[k, i] = self.shell
             for c in self.aim[i]:
-                bone = np.linalg.norm(self.pos_w[:, c] - self.pos_w[:, i], axis=-1).max()
+                bone = self._spans[(i, c)]
                 below = anc[c]
                 affects[k, below] = True
                 lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
@@ -535,13 +685,11 @@ class Compensation:
     def _aimed(self, i: int, frames: slice | np.ndarray, pos_i: np.ndarray) -> np.ndarray:
         """:meth:`rotation_target`'s world rotations of node i on ``frames`` (before they are
         made continuous), its decoded position ``pos_i`` there."""
-        orig = self._world_rotation(i, frames)
-        here = self.pos_w[frames, i]
         aim = self.aim[i]
+        orig, here, points = self._world_pose(i, frames)
         # The aim points (their columns alone: on ``frames``, not every node's), then the shell
         # vertices; each set rotated in one call.
-        there = (np.stack([self.pos_w[frames, c] for c in aim], axis=1) if aim
-                 else np.empty((len(orig), 0, 3)))
+        there = np.stack(points, axis=1) if aim else np.empty((len(orig), 0, 3))
         shell = np.eye(3) * self.shell
         vs = np.concatenate((R.quat_rotate(R.quat_conjugate(orig)[:, None], there - here[:, None]),
                              np.broadcast_to(shell, (len(orig), 3, 3))), axis=1)
@@ -556,22 +704,42 @@ class Compensation:
             chain.append(int(self.motion.skeleton.parents[chain[-1]]))
         return chain[::-1]
 
-    def _world_rotation(self, i: int, frames: slice | np.ndarray) -> np.ndarray:
-        """The original world rotation of node i on ``frames`` (n, 4): its chain's local
-        rotations multiplied from the root down, the products forward kinematics makes (the
-        same numbers)."""
-        if self.rot_w is not None:
-            return self.rot_w[frames, i]
-        rotations = self.motion.rotations
-        chain = self.chains[i]
-        world = np.array(rotations[frames, chain[0]], dtype=np.float64)
-        for a in chain[1:]:
-            world = R.quat_multiply(world, rotations[frames, a])
-        return world
+    def _world_pose(self, i: int, frames: slice | np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """The original world rotation (n, 4) and position (n, 3) of node i on ``frames``, and
+        the positions of its aim points: a long clip's posed along their chains from the root
+        down, the products and sums forward kinematics makes (the same numbers)."""
+        if self.pos_w is not None:
+            return self.rot_w[frames, i], self.pos_w[frames, i], [self.pos_w[frames, c] for c in self.aim[i]]
+        m = self.motion
+        rot, pos, scale = m.rotations, m.translations, m.scales
+        world: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+
+        def pose(a: int) -> None:
+            p = int(m.skeleton.parents[a])
+            r, t = np.array(rot[frames, a], dtype=np.float64), np.array(pos[frames, a], dtype=np.float64)
+            s = np.array(scale[frames, a], dtype=np.float64) if self.scaled else None
+            if p < 0:
+                world[a] = (r, t, s)
+                return
+            pr, pp, ps = world[p]
+            world[a] = (R.quat_multiply(pr, r), pp + R.quat_rotate(pr, t if ps is None else ps * t),
+                        None if ps is None else ps * s)
+        for a in self.chains[i]:
+            pose(a)
+        points = []
+        for c in self.aim[i]:
+            for a in self.chains[c][len(self.chains[i]):]:
+                if a not in world:
+                    pose(a)
+            points.append(world[c][1])
+        return world[i][0], world[i][1], points
 
 
 TARGET_CHUNK = 8192
 """Frames :meth:`Compensation.rotation_target` fits at a time."""
+
+SPAN_CHUNK = 4096
+"""Frames a long clip's :class:`Compensation` poses at a time to measure its bones' spans."""
 
 
 class KeyframeFitter:
@@ -614,10 +782,11 @@ class KeyframeFitter:
     def _fit(self, track: Track) -> None:
         self._fits += 1  # a pass tells a node's refitted tracks by this count
         keep = untouched_keys(track) if self.local_refits else None
-        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep)
+        values = track.values  # an MRP track's derived once for the fit and its state
+        fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep,
+                  values)
         if self.local_refits:
-            track.fitted = (track.values, track.budget.copy(),
-                            None if track.half_budget is None else track.half_budget.copy())
+            track.fitted = Fitted.of(track, values)
 
     def _fit_pass(self, tracks: dict[tuple[int, int], Track], refit: set[tuple[int, int]]) -> None:
         """Walk the nodes parents first; refit a track when asked to or when its parent's
@@ -754,7 +923,9 @@ class KeyframeFitter:
                 t = Track(i, KIND_SCALE, sc.copy(), sc, np.zeros(4), np.zeros(3))
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
-            t.budget = np.full(self.frames, float(b))
+            # One number broadcast over the frames until a repair tightens it (read-only: tighten
+            # gives the track its own array then), not F of them for every track.
+            t.budget = np.broadcast_to(float(b), (self.frames,))
             t.split = self.split
             tracks[(i, part)] = t
             order.append((i, part))
@@ -767,7 +938,14 @@ class KeyframeFitter:
         frames = self.frames
 
         def repair(errors: np.ndarray) -> Callable[[], None]:
-            changed = set(tighten([tracks[k].budget for k in order], reach, errors[:frames], self.tol_units))
+            def moved(k: int, rows: np.ndarray) -> None:
+                fitted = tracks[order[k]].fitted
+                if fitted is not None:
+                    fitted.mark_budget(rows)
+            budgets = [tracks[k].budget for k in order]
+            changed = set(tighten(budgets, reach, errors[:frames], self.tol_units, moved=moved))
+            for k, budget in zip(order, budgets):  # a broadcast budget tightened is a new array
+                tracks[k].budget = budget
             if half is not None:
                 changed |= set(half.tighten([tracks[k] for k in order], reach, errors[frames:]))
             refit = {order[c] for c in changed}
@@ -822,15 +1000,21 @@ class HalfwayHold:
         step, turn = interval_motion(motion, world)
         self.smooth = held_intervals(step, turn, cm_per_unit)
         self.factor = factor
+        self.frame_tolerance = tol_units
         self.tolerance = factor * tol_units
-        self.fails = np.zeros(len(self.smooth), dtype=np.int64)
+        # Repairs an interval has failed: only whether more than RELEASE_AFTER counts, and a
+        # clip has at most max_repairs + 1 checks (int32, not F - 1 int64).
+        self.fails = np.zeros(len(self.smooth), dtype=np.int32)
         self.released = np.zeros(len(self.smooth), dtype=bool)
         self.rounds = 0
 
-    def held(self, half_errors: np.ndarray) -> np.ndarray:
+    def held(self, half_errors: "np.ndarray | OverRows") -> "np.ndarray | OverRows":
         """Half-way errors (F-1, N) with the intervals not held zeroed, in place (the
         errors are the check's own array): no copy of a long clip's (F-1, N)."""
-        half_errors[~(self.smooth & ~self.released)] = 0.0
+        if isinstance(half_errors, OverRows):
+            half_errors.zero(~(self.smooth & ~self.released))
+        else:
+            half_errors[~(self.smooth & ~self.released)] = 0.0
         return half_errors
 
     def stacked(self, tol_units: np.ndarray) -> RowTolerance:
@@ -839,32 +1023,30 @@ class HalfwayHold:
 
     def check(self, check: ClipCheck) -> ClipCheck:
         """``check`` on the frames, then on the held half-way samples (``check(payload,
-        halfway=True)``, zero where not held), as one (2F-1, N) array; counts the repairs
-        each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
-        def both(payload: bytes) -> np.ndarray:
+        halfway=True)``, zero where not held), as one (2F-1, N) :class:`OverRows` (the rows over
+        the frames' tolerance, then those over the half-way one: all the repairs read); counts
+        the repairs each interval has failed and releases those over :attr:`RELEASE_AFTER`."""
+        def both(payload: bytes) -> OverRows:
             self.rounds += 1
-            frames = len(self.smooth) + 1
-            # One (2F-1, N) array the two checks are copied into as they come (each is freed
-            # at once), not the two, their held copies and their concatenation.
-            out = np.empty((2 * frames - 1, len(self.tolerance)))
-            half = out[frames:]
-            if fills:  # written in place (encode.RuntimeCheck), else copied
-                check(payload, halfway=True, out=half)
+            # Rows within the tolerance are never held (a long clip's (2F-1) x N numbers, most
+            # of them within): the check keeps the others as it goes, or they are picked out.
+            if sparse:
+                half = check(payload, halfway=True, over=self.tolerance)
             else:
-                half[...] = check(payload, halfway=True)
+                half = OverRows.of(check(payload, halfway=True), self.tolerance)
             self.held(half)
-            over = np.any(half > self.tolerance[None, :], axis=1)
-            self.fails += over
+            over = half.rows[np.any(half.over(self.tolerance), axis=1)]
+            self.fails[over] += 1
             self.released |= self.fails > self.RELEASE_AFTER
             if self.rounds > self.HOLD_ROUNDS:
-                self.released |= over
-            if fills:
-                check(payload, out=out[:frames])
+                self.released[over] = True
+            if sparse:
+                frames = check(payload, over=self.frame_tolerance)
             else:
-                out[:frames] = check(payload)
+                frames = OverRows.of(check(payload), self.frame_tolerance)
             self.held(half)
-            return out
-        fills = getattr(check, "fills_out", False)
+            return OverRows.stack(frames, half)
+        sparse = getattr(check, "over_rows", False)
         return both
 
     def tighten(self, tracks: list[Track], reach: TrackReach, half_errors: np.ndarray,
@@ -876,11 +1058,15 @@ class HalfwayHold:
         to frames), and at most :attr:`factor` times its frame budgets. A track without
         half-way budgets gets them (inf elsewhere). Returns the indices of the tracks changed."""
         changed: list[int] = []
-        over = self.held(half_errors) > self.tolerance[None, :]  # (zeroed in place)
+        if isinstance(half_errors, OverRows):  # (zeroed in place)
+            rows, over = half_errors.rows, self.held(half_errors).over(self.tolerance)
+        else:
+            over = self.held(half_errors) > self.tolerance[None, :]
+            rows = np.arange(len(over))
         if not over.any():
             return changed
         for k, t in enumerate(tracks):  # first release what a track's parameters jump across
-            at = np.flatnonzero(np.any(over[:, reach.affects[k]], axis=1))
+            at = rows[np.any(over[:, reach.affects[k]], axis=1)]
             if len(at):  # and their neighbours: a curve's tangent there spans the jump
                 flips = at[_parameter_flips(t, at)]
                 self.released[np.clip(np.concatenate((flips - 1, flips, flips + 1)), 0, len(self.released) - 1)] = True
@@ -899,7 +1085,11 @@ class HalfwayHold:
             if t.half_budget is None:
                 t.half_budget = np.full(len(self.smooth), np.inf)
             if np.any(wanted < t.half_budget[at]):
-                t.half_budget[at] = np.minimum(t.half_budget[at], wanted)
+                old = t.half_budget[at]
+                new = np.minimum(old, wanted)
+                if t.fitted is not None:
+                    t.fitted.mark_half(new != old, at)
+                t.half_budget[at] = new
                 changed.append(k)
         return changed
 
@@ -912,7 +1102,7 @@ def _parameter_flips(track: Track, at: np.ndarray) -> np.ndarray:
     both frames do not help there, so the hold does not try."""
     if track.kind in VECTOR_KINDS or not len(at):
         return np.zeros(len(at), dtype=bool)
-    mid = _track_error(track).decoded(0.5 * (track.values[at] + track.values[at + 1]))
+    mid = _track_error(track).decoded(0.5 * (track.values_at(at) + track.values_at(at + 1)))
     off = R.quat_angle(halfway_target(track, at), mid)
     return off > 0.5 * R.quat_angle(track.target[at], track.target[at + 1]) + 1e-9
 
@@ -963,7 +1153,7 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
     if track.target is None or track.kind not in (KIND_MRP, KIND_TWIST):
         return False
     at = slice(None) if rows is None else rows
-    old_q, old_v = track.target[at], track.values[at]
+    old_q, old_v = track.target[at], track.values_at(at)
     if old_q.shape != np.shape(target):
         return False
     q = np.array(target, dtype=np.float64)
@@ -976,13 +1166,23 @@ def _retarget_kept(track: Track, target: np.ndarray, rows: np.ndarray | None = N
         rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(track.axis, theta)), q)
         old_p = old_v[:, 1:]
     rel = R.quat_multiply(R.quat_conjugate(track.ref), rest)
-    rel[np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0] *= -1.0
+    other = np.sum(rel * R.quat_from_mrp(old_p), axis=1) < 0.0
+    rel[other] *= -1.0
     p = R.mrp_from_quat(rel)
     if len(p) and np.max(np.linalg.norm(p, axis=1)) > track.mrp_limit:
         return False
-    values, full = track.values.copy(), track.target.copy()
-    values[at] = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    new_v = p if track.kind == KIND_MRP else np.concatenate((theta[:, None], p), axis=1)
+    full = track.target.copy()
     full[at] = q
+    if track.derived:  # (MRP) its values are mrp_values of the new target with these flips
+        if track.fitted is not None:  # (held values mark it as they are set)
+            track.fitted.mark_values(np.any(new_v != old_v, axis=1), at)
+        flips = track.flips.copy()
+        flips[at] = other
+        track.target, track.flips, track.recon = full, flips, None
+        return True
+    values = track.values.copy()
+    values[at] = new_v
     track.values, track.target, track.recon = values, full, None
     return True
 
@@ -993,15 +1193,17 @@ def _retarget(track: Track, target: np.ndarray, motion: Motion, node: int) -> No
     track.recon = None
     if fresh.kind != track.kind:
         track.keys = None  # the old keys belong to another parameterisation
-    track.kind, track.values, track.target, track.ref, track.axis = (
-        fresh.kind, fresh.values, fresh.target, fresh.ref, fresh.axis)
+    elif track.fitted is not None and track.target is not None and fresh.value_shape == track.value_shape:
+        track.fitted.mark_values(np.any(fresh.values != track.values, axis=1))
+    track.take_values(fresh)
+    track.kind, track.target, track.ref, track.axis = fresh.kind, fresh.target, fresh.ref, fresh.axis
     track.ref_codes, track.axis_codes, track.mrp_limit = fresh.ref_codes, fresh.axis_codes, fresh.mrp_limit
 
 
 def _track_values(track: Track) -> np.ndarray:
     """The parameter curve the runtime decodes, on every frame (keys must be set)."""
     return catmull_rom(track.keys, track.quantizer.roundtrip(track.key_values),
-                       np.arange(len(track.values), dtype=np.float64), track.split)
+                       np.arange(track.frames, dtype=np.float64), track.split)
 
 
 def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
@@ -1009,7 +1211,7 @@ def _track_recon(track: Track, keep: bool = True) -> np.ndarray:
     scale (with ``keep``, kept on the track until it is fitted again)."""
     if track.recon is not None:
         return track.recon
-    frames = len(track.values)
+    frames = track.frames
     if track.keys is None:
         recon = np.broadcast_to(track.constant, (frames, 3 if track.kind in VECTOR_KINDS else 4))
     else:

@@ -93,9 +93,8 @@ def shared_world_positions(motion: Motion) -> np.ndarray:
         if owner() is motion and all(r() is a for r, a in zip(sources, inputs)) and pos is not None:
             return pos
     pos = node_major(motion.translations.shape)
-    for start in range(0, motion.frame_count, POSE_CHUNK):  # the world rotations a run at a time
-        rows = slice(start, start + POSE_CHUNK)
-        pos[rows] = forward_kinematics(motion.skeleton, *(a[rows] for a in inputs))[1]
+    for rows, part in world_position_chunks(motion):  # the world rotations a run at a time
+        pos[rows] = part
     pos.flags.writeable = False
     key = id(motion)
     _SHARED_WORLD[key] = (weakref.ref(motion, lambda _, k=key: _SHARED_WORLD.pop(k, None)),
@@ -105,6 +104,16 @@ def shared_world_positions(motion: Motion) -> np.ndarray:
 
 POSE_CHUNK = 8192
 """Frames :func:`shared_world_positions` poses at a time."""
+
+
+def world_position_chunks(motion: Motion, chunk: int | None = None) -> Iterator[tuple[slice, np.ndarray]]:
+    """World positions of a motion a run of ``chunk`` frames (default :data:`POSE_CHUNK`) at a
+    time, ``(rows, positions)`` (each frame's numbers are its own: the same as whole)."""
+    chunk = chunk or POSE_CHUNK
+    for start in range(0, motion.frame_count, chunk):
+        rows = slice(start, min(start + chunk, motion.frame_count))
+        yield rows, forward_kinematics(motion.skeleton, motion.rotations[rows], motion.translations[rows],
+                                       motion.scales[rows])[1]
 
 SHORT_CLIP_BYTES = 16 << 20
 """A clip whose world rotations (F x N x 4 float64) take at most this many bytes (about 13,000
@@ -200,14 +209,19 @@ def halfway_chunks(motion: Motion, chunk: int = HALFWAY_CHUNK) -> Iterator[tuple
         yield a, forward_kinematics(motion.skeleton, rot, trans, scale)[1]
 
 
-def interval_motion(motion: Motion, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def interval_motion(motion: Motion, world: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Per interval between frames, the largest point step ``(F-1,)`` (file units) of the
-    world positions ``world`` (F, N, 3) and the largest local joint turn ``(F-1,)`` (degrees)."""
+    world positions ``world`` (F, N, 3; None: posed here a run at a time) and the largest local
+    joint turn ``(F-1,)`` (degrees)."""
     intervals = max(motion.frame_count - 1, 0)
     step, turn = np.empty(intervals), np.empty(intervals)
     for start in range(0, intervals, HALFWAY_CHUNK):  # per node (F-1, N) only a run at a time
         rows = slice(start, min(start + HALFWAY_CHUNK, intervals))
-        s, t = _steps_and_turns(motion.rotations[start:rows.stop + 1], world[start:rows.stop + 1])
+        span = slice(start, rows.stop + 1)
+        pos = (world[span] if world is not None else
+               forward_kinematics(motion.skeleton, motion.rotations[span], motion.translations[span],
+                                  motion.scales[span])[1])
+        s, t = _steps_and_turns(motion.rotations[span], pos)
         step[rows], turn[rows] = s.max(axis=1), t.max(axis=1)
     return step, turn
 

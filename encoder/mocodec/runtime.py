@@ -52,26 +52,21 @@ def sample_chunks(asset: "Asset", clip: int | str, frames: np.ndarray, world: bo
         yield rows, rot, pos
 
 
-def world_error(asset: "Asset", clip: int | str, reference: np.ndarray, offset: float = 0.0,
-                out: np.ndarray | None = None) -> np.ndarray:
-    """Distance (F, N) from each node's world position at frame ``k + offset`` to
-    ``reference[k]`` (F, N, 3), decoded a chunk at a time (the same numbers as whole); written
-    into ``out`` when given."""
+def world_error_runs(asset: "Asset", clip: int | str, reference: np.ndarray,
+                     offset: float = 0.0) -> Iterator[tuple[slice, np.ndarray]]:
+    """Distances (F, N) from each node's world position at frame ``k + offset`` to
+    ``reference[k]`` (F, N, 3), decoded a run of :data:`CHUNK_FRAMES` frames at a time
+    (``(rows, distances)``; the same numbers as whole)."""
     frames = np.arange(len(reference), dtype=np.float64) + offset
-    out = np.empty(reference.shape[:2]) if out is None else out
     for rows, _, pos in sample_chunks(asset, clip, frames):
-        out[rows] = np.linalg.norm(pos - reference[rows], axis=-1)
-    return out
+        yield rows, np.linalg.norm(pos - reference[rows], axis=-1)
 
 
-def world_error_chunks(asset: "Asset", clip: int | str, reference: Iterable[tuple[slice, np.ndarray]],
-                       shape: tuple[int, int], offset: float = 0.0, out: np.ndarray | None = None) -> np.ndarray:
-    """:func:`world_error` against a reference given a run of frames at a time, ``(rows,
-    positions)`` covering ``shape`` (F, N) in order: the same numbers, without the reference
-    held whole."""
-    out = np.empty(shape) if out is None else out
+def world_error_chunk_runs(asset: "Asset", clip: int | str, reference: Iterable[tuple[slice, np.ndarray]],
+                           offset: float = 0.0) -> Iterator[tuple[slice, np.ndarray]]:
+    """:func:`world_error_runs` against a reference given a run of frames at a time, ``(rows,
+    positions)`` in order: the same numbers, without the reference held whole."""
     for rows, ref in reference:
         frames = np.arange(rows.start, rows.stop, dtype=np.float64) + offset
         _, pos = asset.sample_frames(clip, frames, world=True)
-        out[rows] = np.linalg.norm(pos - ref, axis=-1)
-    return out
+        yield rows, np.linalg.norm(pos - ref, axis=-1)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterable
 
 import numpy as np
 
@@ -117,13 +117,17 @@ def tighten(
     tolerance_units: np.ndarray,
     radius: int = 1,
     factor: float = 0.7,
+    moved: Callable[[int, np.ndarray], None] | None = None,
 ) -> list[int]:
     """Lower the per-frame budgets of every track on a failing chain, around failing frames.
 
     ``errors_units`` (F, N) is the error measured through the runtime. Where it exceeds the
     tolerance, the budget of each track that moves the failing point is multiplied by
     ``min(factor, 0.95 * tolerance / error)`` on the failing frames and ``radius`` frames
-    around them. Returns the indices of the tracks whose budgets changed.
+    around them. Returns the indices of the tracks whose budgets changed; ``moved(t, rows)``,
+    when given, is told which frames of track t's budget changed value (F,) bool. A budget that
+    is not writeable (one number broadcast over the frames) is replaced in ``budgets`` by the
+    tightened array.
     """
     changed: list[int] = []
     rows, ratio = failing_ratios(errors_units, tolerance_units)
@@ -135,7 +139,13 @@ def tighten(
         spread = budget_multipliers(ratio, failing, reach.affects[t], factor, radius, rows, frames)
         if spread is None:
             continue
-        budget *= spread[:frames]
+        new = budget * spread[:frames]
+        if moved is not None:
+            moved(t, new != budget)
+        if budget.flags.writeable:
+            budget[...] = new
+        else:
+            budgets[t] = new
         changed.append(t)
     return changed
 
@@ -144,10 +154,14 @@ RATIO_CHUNK = 8192
 """Rows :func:`failing_ratios` looks through at a time."""
 
 
-def failing_ratios(errors_units: np.ndarray, tolerance_units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def failing_ratios(errors_units: "np.ndarray | OverRows", tolerance_units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rows of ``errors_units`` (R, N) where some point is over its tolerance (N,) (its
     ratio tolerance / error under 1), and those rows' ratios: a run of rows at a time, so a long
     clip's R x N ratios are never whole (few rows fail; each ratio is the same number)."""
+    if isinstance(errors_units, OverRows):  # the rows it leaves out have every ratio >= 1
+        ratio = tolerance_units[None, :] / np.maximum(errors_units.values, 1e-30)
+        failing = (ratio < 1.0).any(axis=1)
+        return errors_units.rows[failing], ratio[failing]
     rows = []
     for start in range(0, len(errors_units), RATIO_CHUNK):
         part = tolerance_units[None, :] / np.maximum(errors_units[start:start + RATIO_CHUNK], 1e-30)
@@ -182,6 +196,62 @@ def budget_multipliers(ratio: np.ndarray, failing: np.ndarray, affects: np.ndarr
 
 
 # --------------------------------------------------------------------------- meeting it
+class OverRows:
+    """An (R, N) array of errors of which only the rows with some error over a tolerance are
+    held (``rows``, sorted, and their ``values``): every other row is within it. What the
+    repairs read of a check (:func:`within`, :func:`failing_ratios`, the rows over), without a
+    long clip's R x N numbers, most of them within. Rows sliced (``errors[a:b]``) or zeroed
+    (:meth:`zero`) stay within what they were measured against."""
+
+    def __init__(self, count: int, rows: np.ndarray, values: np.ndarray) -> None:
+        self.shape = (count, values.shape[1])
+        self.rows, self.values = rows, values
+
+    @classmethod
+    def gather(cls, runs: "Iterable[tuple[slice, np.ndarray]]", shape: tuple[int, int],
+               tolerance: np.ndarray) -> "OverRows":
+        """The rows of errors given a run of rows at a time, ``(rows, errors)`` covering
+        ``shape`` in order, where some error is not within ``tolerance`` (N,) (NaN too)."""
+        rows, values = [], []
+        for at, part in runs:
+            over = np.flatnonzero(~np.all(part <= tolerance[None, :], axis=1))
+            if len(over):
+                rows.append(at.start + over)
+                values.append(part[over])
+        if not rows:
+            return cls(shape[0], np.zeros(0, dtype=np.int64), np.zeros((0, shape[1])))
+        return cls(shape[0], np.concatenate(rows), np.concatenate(values))
+
+    @classmethod
+    def of(cls, errors: np.ndarray, tolerance: np.ndarray) -> "OverRows":
+        """The rows of a whole (R, N) array not within ``tolerance`` (N,)."""
+        return cls.gather([(slice(0, len(errors)), errors)], errors.shape, tolerance)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, rows: slice) -> "OverRows":
+        start, stop, step = rows.indices(self.shape[0])
+        if step != 1:
+            raise IndexError("OverRows takes a run of rows")
+        keep = (self.rows >= start) & (self.rows < stop)
+        return OverRows(max(stop - start, 0), self.rows[keep] - start, self.values[keep])
+
+    @classmethod
+    def stack(cls, head: "OverRows", tail: "OverRows") -> "OverRows":
+        """``head``'s rows, then ``tail``'s."""
+        return cls(len(head) + len(tail), np.concatenate((head.rows, tail.rows + len(head))),
+                   np.concatenate((head.values, tail.values)))
+
+    def zero(self, rows: np.ndarray) -> None:
+        """Set the rows where ``rows`` (R,) bool is True to 0 (not over anything), in place."""
+        self.values[rows[self.rows]] = 0.0
+
+    def over(self, tolerance: np.ndarray) -> np.ndarray:
+        """(len(rows), N) bool: which held errors exceed ``tolerance`` (N,)."""
+        return self.values > tolerance[None, :]
+
+
 @dataclass
 class RowTolerance:
     """A tolerance per node on the first ``rows`` rows of an error array and another on the
@@ -192,8 +262,14 @@ class RowTolerance:
     rows: int
     tail: np.ndarray
 
-    def ratio_max(self, errors_units: np.ndarray) -> float:
-        """The largest error over its tolerance."""
+    def ratio_max(self, errors_units: "np.ndarray | OverRows") -> float:
+        """The largest error over its tolerance (of rows over it: an :class:`OverRows`' held
+        rows, where that largest is when some row is over)."""
+        if isinstance(errors_units, OverRows):
+            head, tail = errors_units.rows < self.rows, errors_units.rows >= self.rows
+            ratios = [float(np.max(errors_units.values[m] / t)) for m, t in ((head, self.head), (tail, self.tail))
+                      if m.any()]
+            return max(ratios, default=0.0)
         return max(float(np.max(errors_units[:self.rows] / self.head)),
                    float(np.max(errors_units[self.rows:] / self.tail)))
 
@@ -201,6 +277,13 @@ class RowTolerance:
 def within(errors_units: np.ndarray, tolerance_units: "np.ndarray | RowTolerance") -> bool:
     """True when every error is within its tolerance (``tolerance_units`` (N,) per node,
     (F, N) per frame and node, or a :class:`RowTolerance`)."""
+    if isinstance(errors_units, OverRows):  # the rows it leaves out are within
+        rows, values = errors_units.rows, errors_units.values
+        if isinstance(tolerance_units, RowTolerance):
+            t = tolerance_units
+            head = rows < t.rows
+            return bool(np.all(values[head] <= t.head)) and bool(np.all(values[~head] <= t.tail))
+        return bool(np.all(values <= tolerance_units))
     if isinstance(tolerance_units, RowTolerance):
         t = tolerance_units
         return bool(np.all(errors_units[:t.rows] <= t.head)) and bool(np.all(errors_units[t.rows:] <= t.tail))
@@ -213,7 +296,7 @@ class Attempt:
     runtime (F, N), the adjustments made before it, and whether it is within tolerance."""
 
     payload: bytes
-    errors_units: np.ndarray
+    errors_units: "np.ndarray | OverRows"
     adjustments: int
     met: bool
 
@@ -221,6 +304,9 @@ class Attempt:
         """The largest ratio of error to tolerance."""
         if isinstance(tolerance_units, RowTolerance):
             return tolerance_units.ratio_max(self.errors_units)
+        if isinstance(self.errors_units, OverRows):
+            values = self.errors_units.values
+            return float(np.max(values / tolerance_units)) if len(values) else 0.0
         return float(np.max(self.errors_units / tolerance_units))
 
 

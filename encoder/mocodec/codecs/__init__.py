@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ..motion import Motion
-from ..tolerance import Tolerance, ToleranceNotMet  # noqa: F401  (the codecs' one error type)
+from ..tolerance import OverRows, Tolerance, ToleranceNotMet  # noqa: F401  (the codecs' one error type)
 
 if TYPE_CHECKING:
     from ..bake import Runner
@@ -88,8 +88,10 @@ class ClipResult:
     ----------
     payload : bytes
         The clip's bytes in its codec's section.
-    errors_units : ndarray (F, N)
-        World position error through the runtime, file units.
+    errors_units : ndarray (F, N) or OverRows
+        World position error through the runtime, file units (the key-frame codecs, which
+        check half-way between frames too: an :class:`~mocodec.tolerance.OverRows` of the
+        rows over the tolerance, none when met).
     stats : dict
         What the encoder did, reported per clip (numbers and lists, JSON-ready).
     seconds : float
@@ -97,7 +99,7 @@ class ClipResult:
     """
 
     payload: bytes
-    errors_units: np.ndarray
+    errors_units: "np.ndarray | OverRows"
     stats: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
 

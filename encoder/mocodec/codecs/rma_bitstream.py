@@ -313,12 +313,13 @@ class WrittenTracks:
     def write(self, tracks: list[CurveTrack], frame_count: int,
               group_shifts: tuple[int, ...]) -> list[tuple[bytes, bytes]]:
         """Every track's (descriptor, data), those seen in the last call reused; only this
-        call's are kept."""
+        call's are kept (each moved from the last call's as it is met: the two are not held
+        whole at once)."""
         now: dict[tuple, tuple[bytes, bytes]] = {}
         parts = []
         for t in tracks:
             key = _content(t, frame_count, group_shifts)
-            part = self._last.get(key) or now.get(key) or _track_bytes(t, frame_count, group_shifts)
+            part = self._last.pop(key, None) or now.get(key) or _track_bytes(t, frame_count, group_shifts)
             now[key] = part
             parts.append(part)
         self._last = now
