@@ -428,7 +428,8 @@ def _kill_a_busy_worker(address: str, done: threading.Event, killed: list[int]) 
         while not done.is_set():
             busy = [w for w, keys in client.processing().items() if any(str(k).startswith("mocodec-clip") for k in keys)]
             if busy:
-                time.sleep(0.3)  # inside the clip, not at its start
+                # At once: a sample clip can end within a few tenths of a second on an idle
+                # machine, and a kill after its tasks are done tests nothing.
                 os.kill(pids[busy[0]], signal.SIGKILL)
                 killed.append(pids[busy[0]])
                 return
