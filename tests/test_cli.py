@@ -111,6 +111,73 @@ def test_user_errors_are_one_line(args, phrase, tmp_path, sample_paths):
     assert phrase.lower() in lines[0].lower()
 
 
+def test_asset_errors_name_the_file(tmp_path, sample_paths):
+    """`info`/`decode` of bytes the runtime refuses said "mcd_open: asset is truncated", naming
+    neither the file nor anything a user knows; an unknown --clip gave no list to pick from."""
+    good = tmp_path / "good.mcd"
+    assert main(["encode", str(sample_paths[2]), "-o", str(good), "-q"]) == 0
+    trunc = tmp_path / "trunc.mcd"
+    trunc.write_bytes(good.read_bytes()[:1000])
+    cases = [
+        (["info", str(trunc)], f"{trunc}: asset is truncated"),
+        (["decode", str(trunc), "-o", str(tmp_path / "t.bvh")], f"{trunc}: asset is truncated"),
+        (["decode", str(sample_paths[0]), "-o", str(tmp_path / "t.bvh")], f"{sample_paths[0]}: not a mocodec asset"),
+        (["decode", str(good), "-o", str(tmp_path / "d") + "/", "--clip", "nope"],
+         f"{good}: no clip named 'nope' (it holds {sample_paths[2].stem})"),
+    ]
+    for args, phrase in cases:
+        r = run(*args)
+        assert r.returncode == 1, (args, r.stderr)
+        lines = _error_lines(r.stderr)
+        assert len(lines) == 1 and lines[0].startswith(f"mocodec: error: {phrase}"), r.stderr
+        assert "mcd_open" not in r.stderr
+    assert not (tmp_path / "t.bvh").exists() and not (tmp_path / "d").exists()
+
+
+def test_an_output_folder_that_is_not_there_is_refused_before_the_work(tmp_path, sample_paths):
+    """`encode x.bvh -o missing/x.mcd` encoded every clip and then failed naming a temporary
+    file; now it ends at once naming the folder, and `decode -o new/` still makes its folder."""
+    r = run("encode", str(sample_paths[0]), "-o", str(tmp_path / "missing" / "x.mcd"))
+    assert r.returncode == 1
+    assert _error_lines(r.stderr) == [f"mocodec: error: {tmp_path / 'missing' / 'x.mcd'}: "
+                                      f"the folder {tmp_path / 'missing'} does not exist"]
+    assert "encoding" not in r.stdout + r.stderr and ".tmp" not in r.stderr
+    afile = tmp_path / "a.mcd"
+    assert main(["encode", str(sample_paths[0]), "-o", str(afile), "-q"]) == 0
+    r = run("decode", str(afile), "-o", str(afile / "x.bvh"))
+    assert _error_lines(r.stderr) == [f"mocodec: error: {afile / 'x.bvh'}: the folder {afile} is not a folder"]
+    r = run("decode", str(afile), "-o", str(tmp_path / "new" / "sub") + "/", "-q")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "new" / "sub" / f"{sample_paths[0].stem}.bvh").is_file()
+
+
+def test_a_file_named_twice_is_one_clip(tmp_path, sample_paths):
+    """The same file by a folder and by name (or twice) was encoded as two clips, the second
+    renamed; it is read once, with a warning naming it."""
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for p in sample_paths[:2]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    out = tmp_path / "x.mcd"
+    again = folder / ".." / "clips" / sample_paths[0].name
+    r = run("encode", str(folder), str(again), "-o", str(out), "--json")
+    assert r.returncode == 0, r.stderr
+    assert f"mocodec: warning: {again}: given more than once; read once" in r.stderr
+    assert sorted(c["name"] for c in json.loads(r.stdout)["clips"]) == sorted(p.stem for p in sample_paths[:2])
+
+
+def test_bad_tolerances_end_before_reading_and_a_loose_effector_bound_warns(tmp_path, sample_paths):
+    """A bad --tolerance was refused only after every input had been read (a long wait on a
+    library); an --effector-tolerance looser than --tolerance changed nothing, silently."""
+    r = run("encode", str(sample_paths[0]), "-o", str(tmp_path / "x.mcd"), "-t", "nan")
+    assert _error_lines(r.stderr) == ["mocodec: error: tolerance must be a positive number of cm, got nan"]
+    assert "units:" not in r.stderr  # said before the clip was read (reading it guesses its units)
+    r = run("encode", str(sample_paths[0]), "-o", str(tmp_path / "x.mcd"), "-t", "1", "--effector-tolerance", "2")
+    assert r.returncode == 0, r.stderr
+    assert ("mocodec: warning: --effector-tolerance 2 cm is not tighter than --tolerance 1 cm: "
+            "every node is held to 1 cm") in r.stderr
+
+
 def test_demo_runs(tmp_path):
     r = run("demo", "-o", str(tmp_path / "demo"))
     assert r.returncode == 0, r.stderr

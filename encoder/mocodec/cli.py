@@ -17,7 +17,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
@@ -26,6 +26,11 @@ from .limits import clip_name_problem, printable
 from .output import check_output, write_atomic
 from .codecs import DEFAULT_CODEC
 from .tolerance import DEFAULT_TOLERANCE_CM
+
+if TYPE_CHECKING:
+    from mocodec_runtime import ClipInfo
+
+    from .runtime import Asset
 
 EPILOG = """\
 examples:
@@ -73,9 +78,20 @@ def _expand_inputs(inputs: Sequence[str]) -> list[Path]:
     from .load import InputError, expand
 
     try:
-        return expand(inputs)
+        paths = expand(inputs)
     except InputError as exc:
         raise CliError(printable(str(exc))) from None
+    # A file named twice (again by a folder, a link or another spelling) is one clip, not two.
+    seen: set[str] = set()
+    unique = []
+    for p in paths:
+        real = os.path.realpath(p)
+        if real in seen:
+            _warn(f"{p}: given more than once; read once")
+            continue
+        seen.add(real)
+        unique.append(p)
+    return unique
 
 
 def _warn(message: str) -> None:
@@ -143,8 +159,11 @@ def _encode(args: argparse.Namespace, paths: list[Path] | None = None):
 
     quiet = getattr(args, "quiet", False)
     paths = paths or _expand_inputs(args.inputs)
+    tolerance = Tolerance(args.tolerance, args.effector_tolerance)  # before the inputs are read
+    if args.effector_tolerance is not None and args.effector_tolerance >= args.tolerance:
+        _warn(f"--effector-tolerance {args.effector_tolerance:g} cm is not tighter than --tolerance "
+              f"{args.tolerance:g} cm: every node is held to {args.tolerance:g} cm")
     motions, units = _load(paths, args, quiet or getattr(args, "json", False))
-    tolerance = Tolerance(args.tolerance, args.effector_tolerance)
     codec = _codec_choice(args)
     if not quiet and not getattr(args, "json", False):
         eff = f", end effectors {args.effector_tolerance} cm" if args.effector_tolerance else ""
@@ -372,11 +391,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def cmd_decode(args: argparse.Namespace) -> int:
     from .decode import decode_clip, write_asset_gltf
     from .io import write_bvh
-    from .runtime import Asset
 
-    data = _read_asset(args.asset)
-    asset = Asset(data)
-    clips = [asset.clips[asset.clip_index(args.clip)]] if args.clip else asset.clips
+    data, asset = _open_asset(args.asset)
+    clips = [_clip_by_name(asset, args.asset, args.clip)] if args.clip else asset.clips
     out = Path(args.output)
     if out.suffix.lower() in (".glb", ".gltf"):
         write_asset_gltf(data, check_output(out, [args.asset]), [c.index for c in clips])
@@ -393,7 +410,7 @@ def cmd_decode(args: argparse.Namespace) -> int:
         raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
     if folder and out.exists() and not out.is_dir():
         raise CliError(f"{printable(str(out))}: not a folder (the asset holds {len(clips)} clips)")
-    targets = [check_output(out / f"{c.name}.bvh" if folder else out, [args.asset]) for c in clips]
+    targets = [check_output(out / f"{c.name}.bvh" if folder else out, [args.asset], folder_made=folder) for c in clips]
     if folder:
         out.mkdir(parents=True, exist_ok=True)
     progress = _progress(len(clips), not args.quiet)
@@ -419,14 +436,33 @@ def _read_asset(path: str) -> bytes:
     return p.read_bytes()
 
 
+def _open_asset(path: str) -> tuple[bytes, "Asset"]:
+    """The asset's bytes, opened by the runtime; bytes it refuses end in one line naming the file
+    and the runtime's reason (not the call that gave it)."""
+    from .runtime import Asset, Result, RuntimeResultError, validate
+
+    data = _read_asset(path)
+    status = validate(data)
+    if status != Result.OK:
+        raise CliError(f"{printable(path)}: {RuntimeResultError(int(status))}")
+    return data, Asset(data)
+
+
+def _clip_by_name(asset: "Asset", path: str, name: str) -> "ClipInfo":
+    """The clip called `name`; a name the asset does not hold is refused with the ones it does."""
+    found = [c for c in asset.clips if c.name == name]
+    if not found:
+        names = [printable(c.name) for c in asset.clips]
+        listed = ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+        raise CliError(f"{printable(path)}: no clip named {printable(name)!r} (it holds {listed})")
+    return found[0]
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     from .container import read_summary
-    from .runtime import Asset, validate
 
-    data = _read_asset(args.asset)
+    data, asset = _open_asset(args.asset)
     summary = read_summary(data)
-    status = validate(data)
-    asset = Asset(data)
     clips = []
     for c in asset.clips:
         meta = summary.meta.get("clips", {}).get(c.name, {})
@@ -441,7 +477,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     raw_total = sum(c["raw_bvh_bytes"] or 0 for c in clips)
     info = {
         "file": str(args.asset), "bytes": len(data), "format": f"{summary.version[0]}.{summary.version[1]}",
-        "valid": status.name, "scratch_bytes": asset.scratch_size,
+        "valid": "OK", "scratch_bytes": asset.scratch_size,
         "engine_bytes": len(data) + asset.scratch_size,
         "sections": [{"kind": k, "version": v, "offset": o, "bytes": s} for k, v, o, s in summary.sections],
         "skeletons": [{"nodes": asset.skeleton_info(i)[0], "cm_per_unit": asset.skeleton_info(i)[1]}
@@ -452,8 +488,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
-    print(f"{printable(info['file'])}: mocodec asset, format {info['format']}, {len(data):,} bytes, "
-          f"{status.name.lower()}")
+    print(f"{printable(info['file'])}: mocodec asset, format {info['format']}, {len(data):,} bytes, ok")
     if info["encoder"]:
         # META is the asset's own text: printed with escapes (JSON's, and printable's).
         print(f"  written by {printable(str(info['encoder']))}, settings {json.dumps(info['settings'])}")
@@ -583,7 +618,7 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mocodec",
-        description="Compress motion capture (BVH) into compact .mcd assets that the mocodec C "
+        description="Compress motion capture (BVH, glTF 2.0) into compact .mcd assets that the mocodec C "
                     "runtime samples inside a game engine, with a promised max error.",
         epilog=EPILOG + "\ncodecs:\n" + _codec_list() + "\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -591,8 +626,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"mocodec {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    p = sub.add_parser("encode", help="encode BVH clips into one .mcd asset",
-                       description="Encode BVH clips into one asset; every clip stays addressable by name.")
+    p = sub.add_parser("encode", help="encode BVH or glTF clips into one .mcd asset",
+                       description="Encode BVH and glTF clips into one asset; every clip stays addressable by name.")
     _add_encode_arguments(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.mcd", help="asset to write")
     p.set_defaults(func=cmd_encode)
