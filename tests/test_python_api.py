@@ -43,3 +43,20 @@ def test_public_names_have_docstrings():
     importlib.import_module("mocodec.encode")  # importing the submodule again keeps the function
     assert callable(mocodec.encode)
     assert mocodec.Asset.sample.__doc__ and "world" in mocodec.Asset.sample.__doc__
+
+
+def test_a_clip_that_is_not_there_is_refused_by_name_or_index(sample_paths):
+    """`Asset.sample(99, t)` raised a bare "list index out of range" and `sample(-1, t)` sampled
+    the last clip; a clip index is 0 ... clips - 1, as in the runtime's API."""
+    import pytest
+
+    asset = mocodec.Asset(mocodec.encode(mocodec.load(sample_paths[2]), tolerance=2.0))
+    assert asset.sample(0, 0.1).shape == (len(asset.nodes), 10)
+    with pytest.raises(KeyError, match=f"no clip named 'nope'; the asset has {sample_paths[2].stem}"):
+        asset.sample("nope", 0.1)
+    for bad in (1, 99, -1):
+        with pytest.raises(IndexError, match=rf"no clip {bad}: the asset has 1 clip\(s\), 0 \.\.\. 0"):
+            asset.sample(bad, 0.1)
+    for t in (float("nan"), float("inf"), [0.1, float("-inf")]):
+        with pytest.raises(ValueError, match="times must be finite seconds"):
+            asset.sample(0, t)

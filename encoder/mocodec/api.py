@@ -131,12 +131,16 @@ class Asset:
         self.nodes = list(names[0])
 
     def clip(self, clip: int | str) -> Clip:
-        """A clip by index or name (``KeyError`` for an unknown name)."""
+        """A clip by index or name (``KeyError`` for an unknown name, ``IndexError`` for an index
+        outside 0 ... clips - 1: a negative one is refused, not counted from the end, as in the
+        runtime's API)."""
         if isinstance(clip, str):
             for c in self.clips:
                 if c.name == clip:
                     return c
             raise KeyError(f"no clip named {clip!r}; the asset has {', '.join(c.name for c in self.clips)}")
+        if not 0 <= clip < len(self.clips):
+            raise IndexError(f"no clip {clip}: the asset has {len(self.clips)} clip(s), 0 ... {len(self.clips) - 1}")
         return self.clips[clip]
 
     def sample(self, clip: int | str, t: float | np.ndarray, world: bool = False, loop: bool = False,
@@ -165,6 +169,9 @@ class Asset:
         from .runtime import SAMPLE_LOOP, SAMPLE_NEAREST, SAMPLE_WORLD
 
         index = self.clip(clip).index
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"times must be finite seconds, got {t!r}" if np.ndim(t) == 0 else
+                             "times must be finite seconds; the array holds nan or inf")
         flags = (SAMPLE_WORLD if world else 0) | (SAMPLE_LOOP if loop else 0) | (SAMPLE_NEAREST if nearest else 0)
         if np.ndim(t) == 0:
             return self.runtime.sample(index, float(t), flags)
