@@ -68,8 +68,8 @@ web_tests() {
 }
 
 job_c_gcc() {
-  step "C runtime, gcc: header as C99 and C++, no allocation, the test suite" \
-    make -s -C runtime_c check-header check-no-alloc run-tests-gcc
+  step "C runtime, gcc: header as C99 and C++, warnings at -O1 ... -Os, no allocation, the test suite" \
+    make -s -C runtime_c check-header check-warnings check-no-alloc run-tests-gcc
 }
 job_c_clang() { step "C runtime, clang: the test suite" make -s -C runtime_c run-tests-clang; }
 job_c_asan() { step "C runtime, clang ASan+UBSan: the test suite" make -s -C runtime_c run-tests-asan; }

@@ -66,6 +66,9 @@ typedef struct layout {
  * is readable and the parts it announces fit in avail; checks nothing else. */
 static int read_layout(const uint8_t* p, size_t avail, layout* L) {
     size_t off, total;
+    /* Defined on every return: the sampler reads validated bytes and ignores the result, which
+     * gcc -O3 cannot see (maybe-uninitialized). */
+    memset(L, 0, sizeof *L);
     if (avail < HEADER) return 0;
     L->frames = mcd_rd_u32(p);
     L->nodes = mcd_rd_u32(p + 4);

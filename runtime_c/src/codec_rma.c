@@ -72,6 +72,9 @@ typedef struct track_layout {
 
 static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
     uint32_t i;
+    /* Defined on every return: prepare reads validated bytes and ignores the result, which gcc
+     * -O3 cannot see (maybe-uninitialized). */
+    memset(H, 0, sizeof *H);
     if (avail < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
     H->size = mcd_rd_u32(p);
     H->frames = mcd_rd_u32(p + 4);
