@@ -1,0 +1,214 @@
+/* Prototype sampler of the RMAL version 3 candidate "entropy-coded blocks" (EB,
+ * docs/RMAL_V3_STUDY.md), for instruction counts only. It reads the .v3e file that
+ * bench/rmal_v3_probe.py --eb --write makes (every track's rows and Rice-coded blocks exactly
+ * as a v3 payload would hold them) and samples each track's Catmull-Rom curve with the FB
+ * prototype's window, curve and rotation code (bench/rmal_v3_shared.h).
+ *
+ *   rmal_v3_eb FILE.v3e MODE        MODE 0 every frame in order, 1 uniform random times,
+ *                                    2 every other frame, 3 load only
+ *   rmal_v3_eb_check FILE.v3e ASSET.mcd   (-DRMAL_V3_CHECK, linked with the runtime) compares
+ *                                    every animated track, bit for bit, with mcd_sample
+ *
+ * A track: blocks of K = 2^shift keys. Row e (fixed stride): the block's first key frame, the
+ * bit offset of its data, in the "gaps first" variant the bit length of its gap codes, a 5-bit
+ * Rice parameter for the gaps and one per component, each component's anchor (the block's
+ * first key's lattice integer, v2's anchor width). Data: for each key after the block's first,
+ * gap - 1 and each component's zigzag difference from the key before, Rice-coded;
+ * interleaved (per key its gap, then its components) or gaps first (the block's gaps, then
+ * per key its components). Not the codec: the file is trusted, no MCD_SAMPLE_* flags. */
+#define RMAL_V3_PART 1
+#include "rmal_v3_shared.h"
+#undef RMAL_V3_PART
+
+#define RICE_CAP 16u /* a run of 16 zeros: an escape, the symbol follows in 32 raw bits */
+#define RICE_RAW 32u
+
+typedef struct track {
+    const uint8_t *table, *data;
+    uint32_t keys, blocks, row_bits, fbits, obits, lbits, shift, gaps_first;
+    uint32_t fmask;
+    uint64_t omask, lmask;
+    uint8_t abits[4];
+    RMAL_V3_TRACK_DESC
+} track;
+
+/* A key: frame and lattice integers (components past d: 0). */
+typedef struct kv {
+    int64_t q[4];
+    uint32_t frame;
+} kv;
+
+/* Where the codes of the key after the current one start (gbit: its gap; vbit: its components,
+ * the same place when interleaved), the current key's block e and rank r, the block's key
+ * count and Rice parameters. */
+typedef struct reader {
+    uint64_t gbit, vbit;
+    uint32_t e, r, n, k[5];
+} reader;
+
+typedef struct lstate {
+    reader R;
+    kv key; /* the window's slot 3 key, where R stands */
+} lstate;
+
+#define RMAL_V3_PART 2
+#include "rmal_v3_shared.h"
+#undef RMAL_V3_PART
+
+/* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of a
+ * 64-bit window (the code is at most 16 + 1 + 31 bits, so one load holds it). */
+static inline uint64_t rice(const uint8_t* p, uint64_t* bit, uint32_t k) {
+    uint64_t w = rd64(p + (*bit >> 3)) >> (*bit & 7u);
+    uint32_t q = (uint32_t)__builtin_ctzll(w | ((uint64_t)1 << RICE_CAP));
+    if (__builtin_expect(q < RICE_CAP, 1)) {
+        *bit += q + 1u + k;
+        return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+    }
+    *bit += RICE_CAP + RICE_RAW;
+    return (w >> RICE_CAP) & 0xFFFFFFFFu;
+}
+
+static inline int64_t unzig(uint64_t z) {
+    return (int64_t)(z >> 1) ^ -(int64_t)(z & 1u);
+}
+
+static uint32_t first_frame(const track* t, uint32_t e) {
+    return (uint32_t)bits_at(t->table, (uint64_t)e * t->row_bits, t->fbits);
+}
+
+/* Row e: the reader at the block's first key, which is `key` (the anchor). */
+static void load_row(const track* t, uint32_t e, reader* R, kv* key) {
+    uint64_t bit = (uint64_t)e * t->row_bits, h = rd64(t->table + (bit >> 3)) >> (bit & 7u), off;
+    uint32_t c;
+    key->frame = (uint32_t)h & t->fmask;
+    h >>= t->fbits;
+    off = h & t->omask;
+    R->gbit = off;
+    R->vbit = off + ((h >> t->obits) & t->lmask); /* interleaved: lmask 0 */
+    bit += t->fbits + t->obits + t->lbits;
+    h = rd64(t->table + (bit >> 3)) >> (bit & 7u);
+    for (c = 0; c < 5u; ++c) R->k[c] = (uint32_t)(h >> (5u * c)) & 31u;
+    bit += 5u * (t->d + 1u);
+    key->q[3] = 0;
+    for (c = 0; c < t->d; ++c) {
+        key->q[c] = sext(bits_at(t->table, bit, t->abits[c]), t->abits[c]);
+        bit += t->abits[c];
+    }
+    R->e = e;
+    R->r = 0;
+    R->n = e + 1u < t->blocks ? 1u << t->shift : t->keys - (e << t->shift);
+}
+
+/* The key after `from` inside the reader's block into `to` (may be `from`). D is a constant in
+ * each caller's copy, so the component loop unrolls. */
+static inline void step_d(const track* t, reader* R, const kv* from, kv* to, uint32_t D) {
+    uint64_t bit = R->gbit;
+    uint32_t c;
+    to->frame = from->frame + 1u + (uint32_t)rice(t->data, &bit, R->k[0]);
+    if (t->gaps_first) {
+        R->gbit = bit;
+        bit = R->vbit;
+    }
+    for (c = 0; c < D; ++c) to->q[c] = from->q[c] + unzig(rice(t->data, &bit, R->k[c + 1u]));
+    if (D == 3u) to->q[3] = 0;
+    if (t->gaps_first)
+        R->vbit = bit;
+    else
+        R->gbit = bit;
+    R->r++;
+}
+
+static void step(const track* t, reader* R, const kv* from, kv* to) {
+    if (t->d == 3u)
+        step_d(t, R, from, to, 3u);
+    else
+        step_d(t, R, from, to, 4u);
+}
+
+/* The key after `from`, crossing into the next block; 0 past the last key. */
+static int next(const track* t, reader* R, const kv* from, kv* to) {
+    if (R->r + 1u < R->n) {
+        step(t, R, from, to);
+        return 1;
+    }
+    if (R->e + 1u >= t->blocks) return 0;
+    load_row(t, R->e + 1u, R, to);
+    return 1;
+}
+
+/* The block of frame xi: the last whose first key is at or before it (block 0 starts at 0). */
+static uint32_t find_block(const track* t, uint32_t xi) {
+    uint32_t lo = 0, n = t->blocks;
+    while (n > 1u) {
+        uint32_t half = n >> 1;
+        if (first_frame(t, lo + half) <= xi) lo += half;
+        n -= half;
+    }
+    return lo;
+}
+
+/* Random access: from the row of x's block, decode on to key i + 1 (the first after x), keys
+ * i - 1 ... i + 2 in a ring; key i - 1 from the previous block when key i is a block's first. */
+static void locate(const track* t, state* s, float x) {
+    uint32_t xi = (uint32_t)x, j = 0, have = 2, e;
+    kv ring[4];
+    reader R;
+    if (xi >= t->frames - 1u) xi = t->frames - 2u; /* the last frame: the segment before it */
+    e = find_block(t, xi);
+    load_row(t, e, &R, &ring[0]);
+    for (;;) { /* ring[j & 3] is key i once the key after it is past xi */
+        kv* nk = &ring[(j + 1u) & 3u];
+        if (R.r + 1u >= R.n) { /* key i is the block's last: key i + 1 starts the next block */
+            load_row(t, e + 1u, &R, nk);
+            break;
+        }
+        step(t, &R, &ring[j & 3u], nk);
+        if (nk->frame > xi) break;
+        ++j;
+    }
+    if (j == 0u) { /* key i is the block's first: key i - 1 ends the block before, if any */
+        if (e == 0u) {
+            have = 1;
+        } else {
+            reader P;
+            kv* pk = &ring[(j + 3u) & 3u];
+            load_row(t, e - 1u, &P, pk);
+            while (P.r + 1u < P.n) step(t, &P, pk, pk);
+        }
+    }
+    if (have == 2u) put_key(t, s, 0, ring[(j + 3u) & 3u].frame, ring[(j + 3u) & 3u].q);
+    put_key(t, s, 1, ring[j & 3u].frame, ring[j & 3u].q);
+    put_key(t, s, 2, ring[(j + 1u) & 3u].frame, ring[(j + 1u) & 3u].q);
+    s->L.key = ring[(j + 1u) & 3u];
+    s->at_end = !next(t, &R, &s->L.key, &s->L.key);
+    s->L.R = R;
+    if (!s->at_end) put_key(t, s, 3, s->L.key.frame, s->L.key.q);
+    close_window(t, s, have);
+}
+
+/* Playback one key on: slot 3 becomes the key after it; 0 past the last key. */
+static int next_slot3(const track* t, state* s) {
+    if (!next(t, &s->L.R, &s->L.key, &s->L.key)) return 0;
+    put_key(t, s, 3, s->L.key.frame, s->L.key.q);
+    return 1;
+}
+
+#define RMAL_V3_MAGIC "V3E1"
+/* A record's layout bytes: 3 block shift, 4 variant (1: gaps first), 7 first-frame bits,
+ * 12 keys, 16 rows, 20 row bits, 24 offset bits, 28 table and 32 data offsets in the blob,
+ * 36 anchor bits, 40 gap-length bits. */
+static void load_track(track* t, const uint8_t* r, const uint8_t* blob) {
+    t->shift = r[3], t->gaps_first = r[4], t->fbits = r[7];
+    t->keys = rd32(r + 12), t->blocks = rd32(r + 16), t->row_bits = rd32(r + 20), t->obits = rd32(r + 24);
+    t->table = blob + rd32(r + 28);
+    t->data = blob + rd32(r + 32);
+    memcpy(t->abits, r + 36, 4);
+    t->lbits = r[40];
+    t->fmask = (1u << t->fbits) - 1u;
+    t->omask = ((uint64_t)1 << t->obits) - 1u;
+    t->lmask = ((uint64_t)1 << t->lbits) - 1u;
+}
+
+#define RMAL_V3_PART 3
+#include "rmal_v3_shared.h"
+#undef RMAL_V3_PART
