@@ -11,9 +11,13 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
 flags="-O3 -march=x86-64-v2 -DNDEBUG -std=c99"
 gcc $flags -D_ISOC11_SOURCE -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c "$once" -lm -o "$out/once"
-for p in proto eb; do # the runtime's rotation and segment arithmetic (runtime_c/src/internal.h, curve.c)
+# The prototypes use the runtime's rotation and segment arithmetic (runtime_c/src/internal.h,
+# curve.c): the runtime is built with the bench flags only, the prototypes also with -Werror.
+mkdir -p "$out/rt"
+(cd "$out/rt" && gcc $flags -c -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c && ar rcs ../rt.a ./*.o)
+for p in proto eb; do
     gcc $flags -Wall -Wextra -pedantic -Werror -I"$root/runtime_c/include" -I"$root/runtime_c/src" \
-        "$root/bench/rmal_v3_$p.c" "$root"/runtime_c/src/*.c -lm -o "$out/$p"
+        "$root/bench/rmal_v3_$p.c" "$out/rt.a" -lm -o "$out/$p"
 done
 jobs=""
 for f in "$@"; do

@@ -20,6 +20,14 @@
 #include "rmal_v3_shared.h"
 #undef RMAL_V3_PART
 
+/* -DRMAL_V3_PHASES keeps the random access's phases out of line, for callgrind's per-function
+ * counts (where the instructions go); the measured builds inline them. */
+#ifdef RMAL_V3_PHASES
+#define PHASE __attribute__((noinline))
+#else
+#define PHASE
+#endif
+
 #define RICE_CAP 16u /* a run of 16 zeros: an escape, the symbol follows in 32 raw bits */
 #define RICE_RAW 32u
 
@@ -40,9 +48,10 @@ typedef struct kv {
 
 /* Where the codes of the key after the current one start (gbit: its gap; vbit: its components,
  * the same place when interleaved), the current key's block e and rank r, the block's key
- * count and Rice parameters. */
+ * count, and per stream (gaps, then each component) the Rice parameter k and (1 << k) - 1. */
 typedef struct reader {
     uint64_t gbit, vbit;
+    uint64_t mk[5];
     uint32_t e, r, n, k[5];
 } reader;
 
@@ -55,14 +64,14 @@ typedef struct lstate {
 #include "rmal_v3_shared.h"
 #undef RMAL_V3_PART
 
-/* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of a
- * 64-bit window (the code is at most 16 + 1 + 31 bits, so one load holds it). */
-static inline uint64_t rice(const uint8_t* p, uint64_t* bit, uint32_t k) {
+/* One Rice code at *bit with parameter k (mk = (1 << k) - 1): the quotient is the count of
+ * trailing zeros of a 64-bit window (a code is at most 16 + 1 + 31 bits, so one load holds it). */
+static inline uint64_t rice(const uint8_t* p, uint64_t* bit, uint32_t k, uint64_t mk) {
     uint64_t w = rd64(p + (*bit >> 3)) >> (*bit & 7u);
     uint32_t q = (uint32_t)__builtin_ctzll(w | ((uint64_t)1 << RICE_CAP));
     if (__builtin_expect(q < RICE_CAP, 1)) {
         *bit += q + 1u + k;
-        return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+        return ((uint64_t)q << k) | ((w >> (q + 1u)) & mk);
     }
     *bit += RICE_CAP + RICE_RAW;
     return (w >> RICE_CAP) & 0xFFFFFFFFu;
@@ -77,7 +86,7 @@ static uint32_t first_frame(const track* t, uint32_t e) {
 }
 
 /* Row e: the reader at the block's first key, which is `key` (the anchor). */
-static void load_row(const track* t, uint32_t e, reader* R, kv* key) {
+PHASE static void load_row(const track* t, uint32_t e, reader* R, kv* key) {
     uint64_t bit = (uint64_t)e * t->row_bits, h = rd64(t->table + (bit >> 3)) >> (bit & 7u), off;
     uint32_t c;
     key->frame = (uint32_t)h & t->fmask;
@@ -87,7 +96,10 @@ static void load_row(const track* t, uint32_t e, reader* R, kv* key) {
     R->vbit = off + ((h >> t->obits) & t->lmask); /* interleaved: lmask 0 */
     bit += t->fbits + t->obits + t->lbits;
     h = rd64(t->table + (bit >> 3)) >> (bit & 7u);
-    for (c = 0; c < 5u; ++c) R->k[c] = (uint32_t)(h >> (5u * c)) & 31u;
+    for (c = 0; c < 5u; ++c) {
+        R->k[c] = (uint32_t)(h >> (5u * c)) & 31u;
+        R->mk[c] = ((uint64_t)1 << R->k[c]) - 1u;
+    }
     bit += 5u * (t->d + 1u);
     key->q[3] = 0;
     for (c = 0; c < t->d; ++c) {
@@ -104,12 +116,12 @@ static void load_row(const track* t, uint32_t e, reader* R, kv* key) {
 static inline void step_d(const track* t, reader* R, const kv* from, kv* to, uint32_t D) {
     uint64_t bit = R->gbit;
     uint32_t c;
-    to->frame = from->frame + 1u + (uint32_t)rice(t->data, &bit, R->k[0]);
+    to->frame = from->frame + 1u + (uint32_t)rice(t->data, &bit, R->k[0], R->mk[0]);
     if (t->gaps_first) {
         R->gbit = bit;
         bit = R->vbit;
     }
-    for (c = 0; c < D; ++c) to->q[c] = from->q[c] + unzig(rice(t->data, &bit, R->k[c + 1u]));
+    for (c = 0; c < D; ++c) to->q[c] = from->q[c] + unzig(rice(t->data, &bit, R->k[c + 1u], R->mk[c + 1u]));
     if (D == 3u) to->q[3] = 0;
     if (t->gaps_first)
         R->vbit = bit;
@@ -137,7 +149,7 @@ static int next(const track* t, reader* R, const kv* from, kv* to) {
 }
 
 /* The block of frame xi: the last whose first key is at or before it (block 0 starts at 0). */
-static uint32_t find_block(const track* t, uint32_t xi) {
+PHASE static uint32_t find_block(const track* t, uint32_t xi) {
     uint32_t lo = 0, n = t->blocks;
     while (n > 1u) {
         uint32_t half = n >> 1;
@@ -145,6 +157,61 @@ static uint32_t find_block(const track* t, uint32_t xi) {
         n -= half;
     }
     return lo;
+}
+
+/* From the block's first key (ring[0]) to key i + 1, the first after xi, inside the block:
+ * returns key i's rank j, keys j - 3 ... j + 1 in ring[rank & 3]; the reader at key j + 1 (or
+ * at key j = n - 1 when the block ends first). Interleaved: one pass, each key's gap then its
+ * components. Gaps first: the gaps alone find j, then the components of keys 1 ... j + 1 in
+ * one pass without a frame test. */
+static inline uint32_t walk_d(const track* t, reader* R, kv ring[4], uint32_t xi, uint32_t D) {
+    const uint8_t* p = t->data;
+    uint64_t gbit = R->gbit, vbit = R->vbit;
+    uint32_t j = 0, m, c, f = ring[0].frame, n = R->n;
+    if (!t->gaps_first) {
+        for (; j + 1u < n; ++j) {
+            const kv* a = &ring[j & 3u];
+            kv* b = &ring[(j + 1u) & 3u];
+            b->frame = a->frame + 1u + (uint32_t)rice(p, &gbit, R->k[0], R->mk[0]);
+            for (c = 0; c < D; ++c) b->q[c] = a->q[c] + unzig(rice(p, &gbit, R->k[c + 1u], R->mk[c + 1u]));
+            if (b->frame > xi) break;
+        }
+        m = j + 1u < n ? j + 1u : j; /* keys decoded past the first */
+        vbit = gbit;
+    } else {
+        uint32_t fr[4];
+        fr[0] = f;
+        for (; j + 1u < n; ++j) {
+            f += 1u + (uint32_t)rice(p, &gbit, R->k[0], R->mk[0]);
+            fr[(j + 1u) & 3u] = f;
+            if (f > xi) break;
+        }
+        m = j + 1u < n ? j + 1u : j;
+        for (c = 1; c <= m; ++c) { /* components of keys 1 ... m, sums in the ring */
+            const kv* a = &ring[(c - 1u) & 3u];
+            kv* b = &ring[c & 3u];
+            uint32_t i;
+            for (i = 0; i < D; ++i) b->q[i] = a->q[i] + unzig(rice(p, &vbit, R->k[i + 1u], R->mk[i + 1u]));
+            b->frame = fr[c & 3u];
+        }
+    }
+    if (D == 3u)
+        for (c = 0; c < 4u; ++c) ring[c].q[3] = 0;
+    R->gbit = gbit;
+    R->vbit = vbit;
+    R->r = m;
+    return j;
+}
+
+PHASE static uint32_t walk(const track* t, reader* R, kv ring[4], uint32_t xi) {
+    return t->d == 3u ? walk_d(t, R, ring, xi, 3u) : walk_d(t, R, ring, xi, 4u);
+}
+
+/* The last key of block e (a whole block's decode). */
+PHASE static void last_key(const track* t, uint32_t e, kv* key) {
+    reader P;
+    load_row(t, e, &P, key);
+    while (P.r + 1u < P.n) step(t, &P, key, key);
 }
 
 /* Random access: from the row of x's block, decode on to key i + 1 (the first after x), keys
@@ -156,24 +223,13 @@ static void locate(const track* t, state* s, float x) {
     if (xi >= t->frames - 1u) xi = t->frames - 2u; /* the last frame: the segment before it */
     e = find_block(t, xi);
     load_row(t, e, &R, &ring[0]);
-    for (;;) { /* ring[j & 3] is key i once the key after it is past xi */
-        kv* nk = &ring[(j + 1u) & 3u];
-        if (R.r + 1u >= R.n) { /* key i is the block's last: key i + 1 starts the next block */
-            load_row(t, e + 1u, &R, nk);
-            break;
-        }
-        step(t, &R, &ring[j & 3u], nk);
-        if (nk->frame > xi) break;
-        ++j;
-    }
+    j = walk(t, &R, ring, xi);
+    if (j + 1u >= R.n) load_row(t, e + 1u, &R, &ring[(j + 1u) & 3u]); /* key i ends the block */
     if (j == 0u) { /* key i is the block's first: key i - 1 ends the block before, if any */
         if (e == 0u) {
             have = 1;
         } else {
-            reader P;
-            kv* pk = &ring[(j + 3u) & 3u];
-            load_row(t, e - 1u, &P, pk);
-            while (P.r + 1u < P.n) step(t, &P, pk, pk);
+            last_key(t, e - 1u, &ring[3]);
         }
     }
     if (have == 2u) put_key(t, s, 0, ring[(j + 3u) & 3u].frame, ring[(j + 3u) & 3u].q);
