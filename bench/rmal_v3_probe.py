@@ -428,7 +428,8 @@ def write_file(path: Path, magic: bytes, clips: list[Clip], layouts: list[list],
         for t, L in zip(clip.tracks, ls):
             table, data, layout_bytes, words, abits, extra = pack(t, L)
             assert len(table) == L.table_bytes and len(data) == L.data_bytes
-            recs += track_record(t, layout_bytes, (len(t.frames), *words, len(blob), len(blob) + len(table)), abits, extra)
+            words = (len(t.frames), *words, len(blob), len(blob) + len(table))
+            recs += track_record(t, layout_bytes, words, abits, extra)
             blob += table + data
         blob += bytes(8)
         out += struct.pack("<III", clip.frame_count, len(clip.tracks), len(blob)) + recs + blob
@@ -612,8 +613,8 @@ def evaluate_eb(name: str, clips: list[Clip], prefix: int, shifts: tuple[int, ..
                  lambda L: f"K={1 << L.shift}")
 
 
-EB_CANDIDATES = (("EB K=16", (4,)), ("EB K=32", (5,)), ("EB K=64", (6,)), ("EB best K (8 ... 128)", EB_SHIFTS),
-                 ("EB best K (16, 32, 64)", (4, 5, 6)))
+EB_CANDIDATES = (("EB K=8", (3,)), ("EB K=16", (4,)), ("EB K=32", (5,)), ("EB K=64", (6,)),
+                 ("EB best K (8 ... 128)", EB_SHIFTS), ("EB best K (16, 32, 64)", (4, 5, 6)))
 
 
 def eb_main(args: argparse.Namespace) -> None:
