@@ -24,6 +24,10 @@
  * counts (where the instructions go); the measured builds inline them. */
 #ifdef RMAL_V3_PHASES
 #define PHASE __attribute__((noinline))
+static unsigned long long walks, walked; /* locates, keys their walks decoded */
+__attribute__((destructor)) static void walk_report(void) {
+    fprintf(stderr, "walks %llu, keys decoded by walks %llu\n", walks, walked);
+}
 #else
 #define PHASE
 #endif
@@ -204,7 +208,11 @@ static inline uint32_t walk_d(const track* t, reader* R, kv ring[4], uint32_t xi
 }
 
 PHASE static uint32_t walk(const track* t, reader* R, kv ring[4], uint32_t xi) {
-    return t->d == 3u ? walk_d(t, R, ring, xi, 3u) : walk_d(t, R, ring, xi, 4u);
+    uint32_t j = t->d == 3u ? walk_d(t, R, ring, xi, 3u) : walk_d(t, R, ring, xi, 4u);
+#ifdef RMAL_V3_PHASES
+    walks++, walked += R->r;
+#endif
+    return j;
 }
 
 /* The last key of block e (a whole block's decode). */
