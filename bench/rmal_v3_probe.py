@@ -378,7 +378,7 @@ def tally(name: str, clips: list[Clip], prefix: int, choose, parts_of, label) ->
     """Asset bytes of a candidate whose layout of a track is ``choose(t)``, and where they go:
     ``parts_of(L)`` a track's parts in bits (rows and head in bytes), ``label(L)`` its choice."""
     total = prefix
-    parts: dict[str, float] = {}
+    parts: dict[str, int] = {}
     choice: dict[str, int] = {}
     layouts = []
     for clip in clips:
@@ -387,12 +387,15 @@ def tally(name: str, clips: list[Clip], prefix: int, choose, parts_of, label) ->
         p = payload_bytes(clip, [L.bytes for L in ls])
         total += p
         parts["rows"] = parts.get("rows", 0) + sum(L.table_bytes for L in ls)
+        clip_bits: dict[str, int] = {}
         for L in ls:
             for k, v in parts_of(L).items():
-                parts[k] = parts.get(k, 0) + v / 8
+                clip_bits[k] = clip_bits.get(k, 0) + v
             choice[label(L)] = choice.get(label(L), 0) + 1
+        for k, v in clip_bits.items():  # whole bytes per clip
+            parts[k] = parts.get(k, 0) + v // 8
         parts["head"] = parts.get("head", 0) + p - sum(L.bytes for L in ls)
-    return dict(candidate=name, asset_bytes=total, **{k: int(v) for k, v in parts.items()},
+    return dict(candidate=name, asset_bytes=total, **parts,
                 choices=dict(sorted(choice.items(), key=lambda kv: -kv[1])[:6]), layouts=layouts)
 
 
