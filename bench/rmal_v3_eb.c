@@ -2,7 +2,8 @@
  * docs/RMAL_V3_STUDY.md), for instruction counts only. It reads the .v3e file that
  * bench/rmal_v3_probe.py --eb --write makes (every track's rows and Rice-coded blocks exactly
  * as a v3 payload would hold them) and samples each track's Catmull-Rom curve with the FB
- * prototype's window, curve and rotation code (bench/rmal_v3_shared.h).
+ * prototype's window, curve and rotation code (bench/rmal_v3_shared.h). Build with
+ * -Iruntime_c/include -Iruntime_c/src and link the runtime (its curve.c).
  *
  *   rmal_v3_eb FILE.v3e MODE        MODE 0 every frame in order, 1 uniform random times,
  *                                    2 every other frame, 3 load only

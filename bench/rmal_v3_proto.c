@@ -2,12 +2,15 @@
  * instruction counts only: it reads the .v3p file bench/rmal_v3_probe.py --write makes (the
  * rows and records of every track exactly as a v3 payload would hold them, plus each track's
  * descriptor fields in a fixed record) and samples every track's Catmull-Rom curve, rotations
- * to quaternions, the same float operations as runtime_c/src/codec_rma.c.
+ * to quaternions, the same float operations as runtime_c/src/codec_rma.c (the window, curve,
+ * rotation and file code is bench/rmal_v3_shared.h, shared with bench/rmal_v3_eb.c). Build with
+ * -Iruntime_c/include -Iruntime_c/src and link the runtime (its curve.c).
  *
  *   rmal_v3_proto FILE.v3p MODE        MODE 0 every frame in order, 1 uniform random times,
- *                                       2 every other frame (same sequence as /tmp/ps/once.c)
- *   rmal_v3_check FILE.v3p ASSET.mcd   (built with -DRMAL_V3_CHECK and the runtime) compares
- *                                       every animated track, bit for bit, with mcd_sample
+ *                                       2 every other frame (same sequence as /tmp/ps/once.c),
+ *                                       3 load only
+ *   rmal_v3_check FILE.v3p ASSET.mcd   (built with -DRMAL_V3_CHECK) compares every animated
+ *                                       track, bit for bit, with mcd_sample
  *
  * Not the codec: no validation (the file is trusted), no MCD_SAMPLE_* flags. */
 #define RMAL_V3_PART 1
