@@ -25,7 +25,7 @@
  * counts (where the instructions go); the measured builds inline them. */
 #ifdef RMAL_V3_PHASES
 #define PHASE __attribute__((noinline))
-static unsigned long long walks, walked; /* locates, keys their walks decoded */
+static unsigned long long walks, walked; /* locates, keys their walks (two-way: searches and window) decoded */
 __attribute__((destructor)) static void walk_report(void) {
     fprintf(stderr, "walks %llu, keys decoded by walks %llu\n", walks, walked);
 }
@@ -36,9 +36,11 @@ __attribute__((destructor)) static void walk_report(void) {
 #define RICE_CAP 16u /* a run of 16 zeros: an escape, the symbol follows in 32 raw bits */
 #define RICE_RAW 32u
 
+struct kv;
 typedef struct track {
     const uint8_t *table, *data;
-    uint32_t keys, blocks, row_bits, fbits, obits, lbits, shift, gaps_first;
+    struct kv* back; /* two-way: the current block's backward keys by rank (the window's reader's) */
+    uint32_t keys, blocks, row_bits, fbits, obits, lbits, shift, gaps_first, two_way;
     uint32_t fmask;
     uint64_t omask, lmask;
     uint8_t abits[4];
@@ -225,8 +227,14 @@ PHASE static void last_key(const track* t, uint32_t e, kv* key) {
 
 /* Random access: from the row of x's block, decode on to key i + 1 (the first after x), keys
  * i - 1 ... i + 2 in a ring; key i - 1 from the previous block when key i is a block's first. */
+static void locate2(const track* t, state* s, float x);
+
 static void locate(const track* t, state* s, float x) {
     uint32_t xi = (uint32_t)x, j = 0, have = 2, e;
+    if (t->two_way) {
+        locate2(t, s, x);
+        return;
+    }
     kv ring[4];
     reader R;
     if (xi >= t->frames - 1u) xi = t->frames - 2u; /* the last frame: the segment before it */
@@ -251,9 +259,159 @@ static void locate(const track* t, state* s, float x) {
     close_window(t, s, have);
 }
 
+/* ------------------------------------------------------------------ two-way blocks
+ * Keys 1 ... h of a block are read forward from its anchor (h = K/2; the last block: all), keys
+ * K - 1 ... h + 1 backward from the next row's anchor (key K), each the key after it minus its
+ * step. Backward keys land in t->back[rank], so playback reads them there in order. */
+
+static uint32_t half(const track* t, const reader* R) {
+    return R->e + 1u < t->blocks ? 1u << (t->shift - 1u) : R->n - 1u;
+}
+
+/* The key before `from` (backward codes at *bit, with R's parameters). */
+static void back_step(const track* t, const reader* R, uint64_t* bit, const kv* from, kv* to) {
+    uint32_t c;
+    to->frame = from->frame - 1u - (uint32_t)rice(t->data, bit, R->k[0], R->mk[0]);
+    for (c = 0; c < t->d; ++c) to->q[c] = from->q[c] - unzig(rice(t->data, bit, R->k[c + 1u], R->mk[c + 1u]));
+    to->q[3] = t->d == 4u ? to->q[3] : 0;
+}
+
+/* Playback: the key after L's; 0 past the last key. Entering a block's backward half decodes it
+ * whole into t->back. */
+static int next2(const track* t, lstate* L) {
+    reader* R = &L->R;
+    uint32_t h = half(t, R), k;
+    if (R->r < h) {
+        step(t, R, &L->key, &L->key);
+        return 1;
+    }
+    if (R->r + 1u < R->n) {
+        if (R->r == h) {
+            reader N;
+            uint64_t bit = R->vbit;
+            load_row(t, R->e + 1u, &N, &t->back[R->n]);
+            for (k = R->n - 1u; k > h; --k) back_step(t, R, &bit, &t->back[k + 1u], &t->back[k]);
+        }
+        L->key = t->back[++R->r];
+        return 1;
+    }
+    if (R->e + 1u >= t->blocks) return 0;
+    load_row(t, R->e + 1u, R, &L->key);
+    return 1;
+}
+
+/* Random access in a two-way block: search from the anchor nearer to x (by frame), forward keys
+ * in fw[rank], backward ones in t->back[rank]; the window's keys by rank, decoding more only
+ * when a window key lies beyond what the search decoded. */
+typedef struct view {
+    reader R, N;   /* x's block, forward at rank fn - 1; the next block at its anchor */
+    kv fw[128];
+    uint32_t fn, blo, h, have_next; /* backward keys blo ... n decoded (blo = n + 1: none) */
+    uint64_t bbit;
+} view;
+
+static void fw_to(const track* t, view* V, uint32_t rank) {
+#ifdef RMAL_V3_PHASES
+    walked += rank >= V->fn ? rank + 1u - V->fn : 0u;
+#endif
+    for (; V->fn <= rank; ++V->fn) step(t, &V->R, &V->fw[V->fn - 1u], &V->fw[V->fn]);
+}
+static void next_anchor(const track* t, view* V) {
+    if (!V->have_next) load_row(t, V->R.e + 1u, &V->N, &t->back[V->R.n]), V->have_next = 1;
+}
+static void bw_to(const track* t, view* V, uint32_t rank) {
+    next_anchor(t, V);
+    if (V->blo > V->R.n) V->blo = V->R.n;
+#ifdef RMAL_V3_PHASES
+    walked += V->blo > rank ? V->blo - rank : 0u;
+#endif
+    for (; V->blo > rank; --V->blo) back_step(t, &V->R, &V->bbit, &t->back[V->blo], &t->back[V->blo - 1u]);
+}
+static const kv* at_rank(const track* t, view* V, uint32_t rank) {
+    if (rank <= V->h) {
+        fw_to(t, V, rank);
+        return &V->fw[rank];
+    }
+    bw_to(t, V, rank);
+    return &t->back[rank];
+}
+
+static void locate2(const track* t, state* s, float x) {
+    uint32_t xi = (uint32_t)x, i, n, last, slot;
+    view V;
+    kv prev, after;
+    if (xi >= t->frames - 1u) xi = t->frames - 2u;
+#ifdef RMAL_V3_PHASES
+    walks++;
+#endif
+    load_row(t, find_block(t, xi), &V.R, &V.fw[0]);
+    n = V.R.n;
+    last = V.R.e + 1u >= t->blocks;
+    V.h = half(t, &V.R), V.fn = 1, V.blo = n + 1u, V.have_next = 0, V.bbit = V.R.vbit;
+    i = V.h; /* key i: the last at or before xi */
+    if (!last && 2u * (xi - V.fw[0].frame) >= first_frame(t, V.R.e + 1u) - V.fw[0].frame) {
+        uint32_t r;
+        for (r = n; r > V.h + 1u; --r) { /* backward from the next anchor */
+            bw_to(t, &V, r - 1u);
+            if (t->back[r - 1u].frame <= xi) break;
+        }
+        if (r > V.h + 1u) {
+            i = r - 1u;
+        } else {
+            for (i = 0; i < V.h && at_rank(t, &V, i + 1u)->frame <= xi; ++i) {}
+        }
+    } else {
+        for (i = 0; i < V.h && at_rank(t, &V, i + 1u)->frame <= xi; ++i) {}
+        if (i == V.h && !last) { /* past the forward half */
+            uint32_t r;
+            for (r = n; r > V.h + 1u && at_rank(t, &V, r - 1u)->frame > xi; --r) {}
+            i = r - 1u;
+        }
+    }
+    /* the window: keys i - 1 ... i + 2 */
+    if (i > 0) {
+        put_key(t, s, 0, at_rank(t, &V, i - 1u)->frame, at_rank(t, &V, i - 1u)->q);
+    } else if (V.R.e > 0) { /* the previous block's last key: one backward step from this anchor */
+        reader P;
+        kv a;
+        uint64_t bit;
+        load_row(t, V.R.e - 1u, &P, &a);
+        bit = P.vbit;
+        back_step(t, &P, &bit, &V.fw[0], &prev);
+        put_key(t, s, 0, prev.frame, prev.q);
+    }
+    put_key(t, s, 1, at_rank(t, &V, i)->frame, at_rank(t, &V, i)->q);
+    for (slot = 2; slot < 4u; ++slot) { /* keys i + 1 and i + 2; the reader left at the last */
+        uint32_t r = i + slot - 1u;
+        const kv* k;
+        s->at_end = 0;
+        if (r < n || (r == n && !last)) {
+            k = at_rank(t, &V, r);
+            if (r <= V.h) {
+                s->L.R = V.R; /* forward: the search stopped at key i + 1, fw_to(i + 2) at most */
+            } else if (r < n) {
+                s->L.R = V.R;
+                s->L.R.r = r;
+            } else {
+                s->L.R = V.N;
+            }
+        } else if (r == n + 1u && !last && V.N.n > 1u) {
+            s->L.R = V.N;
+            step(t, &s->L.R, &t->back[n], &after);
+            k = &after;
+        } else {
+            s->at_end = 1;
+            break;
+        }
+        put_key(t, s, slot, k->frame, k->q);
+        s->L.key = *k;
+    }
+    close_window(t, s, i > 0 || V.R.e > 0 ? 2u : 1u);
+}
+
 /* Playback one key on: slot 3 becomes the key after it; 0 past the last key. */
 static int next_slot3(const track* t, state* s) {
-    if (!next(t, &s->L.R, &s->L.key, &s->L.key)) return 0;
+    if (!(t->two_way ? next2(t, &s->L) : next(t, &s->L.R, &s->L.key, &s->L.key))) return 0;
     put_key(t, s, 3, s->L.key.frame, s->L.key.q);
     return 1;
 }
@@ -263,7 +421,10 @@ static int next_slot3(const track* t, state* s) {
  * 12 keys, 16 rows, 20 row bits, 24 offset bits, 28 table and 32 data offsets in the blob,
  * 36 anchor bits, 40 gap-length bits. */
 static void load_track(track* t, const uint8_t* r, const uint8_t* blob) {
-    t->shift = r[3], t->gaps_first = r[4], t->fbits = r[7];
+    static kv pool[MAX_TRACKS][129]; /* two-way backward keys, one row per track of a clip */
+    static uint32_t used;
+    t->shift = r[3], t->gaps_first = r[4] == 1u, t->two_way = r[4] == 2u, t->fbits = r[7];
+    t->back = pool[used++ % MAX_TRACKS];
     t->keys = rd32(r + 12), t->blocks = rd32(r + 16), t->row_bits = rd32(r + 20), t->obits = rd32(r + 24);
     t->table = blob + rd32(r + 28);
     t->data = blob + rd32(r + 32);

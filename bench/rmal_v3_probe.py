@@ -492,7 +492,7 @@ def write_proto(path: Path, clips: list[Clip], layouts: list[list[BlockLayout]])
 
 # ---------------------------------------------------------------- EB: entropy-coded blocks
 EB_SHIFTS = (3, 4, 5, 6, 7)  # K = 8 ... 128 keys per block
-EB_VARIANTS = ("interleaved", "gaps first")
+EB_VARIANTS = ("interleaved", "gaps first", "two-way")
 RICE_CAP = 16  # a quotient of 16 or more is an escape: 16 zeros, then the symbol in 32 raw bits
 RICE_RAW = 32
 RICE_KMAX = 31  # 5-bit parameters
@@ -530,10 +530,10 @@ class EBLayout(PackedSize):
     variant: int  # EB_VARIANTS index
     fbits: int
     obits: int
-    lbits: int  # bits of the gap stream's length (gaps first), else 0
+    lbits: int  # bits of the gap stream's length (gaps first) or the forward part's (two-way), else 0
     first_frames: np.ndarray  # (rows,)
     offsets: np.ndarray  # (rows,) bit offset of the block's data
-    gap_len: np.ndarray  # (rows,) bits of the block's gap codes
+    gap_len: np.ndarray  # (rows,) bits of the block's gap codes (gaps first) or forward part (two-way)
     anchors: np.ndarray  # (rows, d) the block's first key whole
     abits: list[int]
     params: np.ndarray  # (rows, d + 1) Rice parameters: gaps, then each component
@@ -549,11 +549,20 @@ def eb_layout(t: Track, shift: int, variant: int = 0) -> EBLayout:
     K, f, d = 1 << shift, t.frames, t.d
     N = len(f)
     rows = (N + K - 1) // K
-    idx = np.arange(1, N)
-    keep = idx % K != 0  # a block's first key is its row's anchor
-    S = np.column_stack([np.diff(f) - 1, zigzag(np.diff(t.q, axis=0))])[keep]
+    T = np.column_stack([np.diff(f) - 1, zigzag(np.diff(t.q, axis=0))])  # T[k]: from key k to key k + 1
+    tix = np.arange(N - 1)
+    blk_t, j = tix >> shift, tix & (K - 1)
+    if variant == 2:  # two-way: keys 1 ... K/2 forward from the anchor, K/2 + 1 ... K - 1 backward from the
+        # next row's anchor (the last block: all forward); the step from key K/2 to K/2 + 1 is not stored
+        inner = blk_t < rows - 1
+        back = inner & (j > K // 2)
+        order = np.lexsort((np.where(back, -j, j), back, blk_t))
+        sel = order[~(inner & (j == K // 2))[order]]
+    else:
+        sel = tix[j != K - 1]  # the step into a block's first key is its row's anchor
+        back = np.zeros(N - 1, dtype=bool)
+    S, blk, back = T[sel], blk_t[sel], back[sel]
     assert S.size == 0 or (S.min() >= 0 and S.max() < 1 << RICE_RAW)
-    blk = idx[keep] >> shift
     ks = np.arange(RICE_KMAX + 1)
     cost = rice_bits(S[:, None, :], ks[None, :, None])  # (n, k, stream)
     cs = np.concatenate([np.zeros((1,) + cost.shape[1:], np.int64), np.cumsum(cost, 0)])
@@ -569,11 +578,16 @@ def eb_layout(t: Track, shift: int, variant: int = 0) -> EBLayout:
         lim = 1 << (t.abits[c] - 1)
         assert -lim <= anchors[:, c].min() and anchors[:, c].max() < lim, (c, t.abits[c])
     fbits, obits = bits_for(t.frame_count - 1), bits_for(data_bits)
-    lbits = bits_for(int(bits[:, 0].max(initial=0))) if variant == 1 else 0
+    if variant == 2:  # the row says where the backward part starts: the forward part's length
+        fwd = rice_bits(S, params[blk]).sum(1) if S.size else np.zeros(0, np.int64)
+        part = np.bincount(blk[~back], fwd[~back], minlength=rows).astype(np.int64)
+    else:
+        part = bits[:, 0]  # gaps first: the gap codes' length
+    lbits = bits_for(int(part.max(initial=0))) if variant else 0
     assert fbits + obits + lbits <= HEAD_BITS_MAX
     row_bits = fbits + obits + lbits + PARAM_BITS * (d + 1) + sum(t.abits[:d])
     esc = int((S >> params[blk] >= RICE_CAP).sum()) if S.size else 0
-    return EBLayout(rows, row_bits, data_bits, shift, variant, fbits, obits, lbits, f[::K], offsets, bits[:, 0],
+    return EBLayout(rows, row_bits, data_bits, shift, variant, fbits, obits, lbits, f[::K], offsets, part,
                     anchors, list(t.abits[:d]), params, S, blk, int(bits[:, 0].sum()), int(bits[:, 1:].sum()), esc)
 
 
@@ -585,7 +599,8 @@ def eb_pack(t: Track, L: EBLayout):
     """An EB track for bench/rmal_v3_eb.c ("V3E1"). Row: first frame, data offset, (gap stream
     length,) Rice parameters (gaps, then each component), anchors. Data per block: interleaved,
     per key its gap code then each component's code; gaps first, every gap code of the block,
-    then per key each component's code."""
+    then per key each component's code; two-way, interleaved, keys 1 ... K/2 then K ... K/2 + 2 (the
+    steps into them from the key before)."""
     d = t.d
     cols = [L.first_frames, L.offsets] + ([L.gap_len] if L.lbits else []) + [L.params[:, c] for c in range(d + 1)]
     cols += [L.anchors[:, c] & ((1 << L.abits[c]) - 1) for c in range(d)]
@@ -595,7 +610,7 @@ def eb_pack(t: Track, L: EBLayout):
     uv, uw, lv, lw = rice_fields(L.symbols, L.params[L.sym_block])
     v, w = np.stack([uv, lv], -1), np.stack([uw, lw], -1)  # (n, stream, part)
     dw = BitWriter()
-    if L.variant == 0:
+    if L.variant != 1:
         dw.write(v.ravel(), w.ravel())
     else:
         for e in range(L.rows):
@@ -631,7 +646,7 @@ def eb_main(args: argparse.Namespace) -> None:
         keys = sum(len(t.frames) for c in clips for t in c.tracks)
         print(f"## {tol}: v2 {v2:,} B, {keys:,} keys, target {TARGETS[tol]:,} B", flush=True)
         rows = []
-        for variant in range(len(EB_VARIANTS)):
+        for variant in (int(v) for v in args.eb_variants.split(",")):
             for name, shifts in EB_CANDIDATES:
                 r = evaluate_eb(f"{name}, {EB_VARIANTS[variant]}", clips, prefix, shifts, variant)
                 layouts = r.pop("layouts")
@@ -673,6 +688,7 @@ def main() -> None:
     ap.add_argument("--tolerances", default="1cm,0.02cm", help="which dev assets (1cm, 0.02cm)")
     ap.add_argument("--eb", action="store_true", help="the entropy-coded block (EB) candidates instead; --write "
                     "writes rma_<tolerance>_<K>_v<variant>.v3e for bench/rmal_v3_eb.c")
+    ap.add_argument("--eb-variants", default="0,1,2", help="EB code orders: 0 interleaved, 1 gaps first, 2 two-way")
     args = ap.parse_args()
     if args.eb:
         eb_main(args)
