@@ -268,19 +268,44 @@ static uint32_t half(const track* t, const reader* R) {
     return R->e + 1u < t->blocks ? 1u << (t->shift - 1u) : R->n - 1u;
 }
 
-/* The key before `from` (backward codes at *bit, with R's parameters). */
-static void back_step(const track* t, const reader* R, uint64_t* bit, const kv* from, kv* to) {
+/* Keys one by one from b[r]: forward (b[r + 1] = b[r] + its step) or backward (b[r - 1] =
+ * b[r] - the step into b[r]), codes at *bit with R's parameters, until rank `to`, or until the
+ * first key past xi in the walk's direction (forward: frame > xi; backward: frame <= xi).
+ * Returns the last rank decoded. `forward` and D are constants in each caller's copy. */
+static inline uint32_t run_d(const track* t, const reader* R, uint64_t* bit, kv* b, uint32_t r, uint32_t to,
+                             uint32_t xi, int forward, uint32_t D) {
+    const uint8_t* p = t->data;
+    uint64_t bb = *bit;
     uint32_t c;
-    to->frame = from->frame - 1u - (uint32_t)rice(t->data, bit, R->k[0], R->mk[0]);
-    for (c = 0; c < t->d; ++c) to->q[c] = from->q[c] - unzig(rice(t->data, bit, R->k[c + 1u], R->mk[c + 1u]));
-    to->q[3] = t->d == 4u ? to->q[3] : 0;
+    while (r != to) {
+        const kv* a = &b[r];
+        kv* k = &b[forward ? r + 1u : r - 1u];
+        uint32_t g = 1u + (uint32_t)rice(p, &bb, R->k[0], R->mk[0]);
+        k->frame = forward ? a->frame + g : a->frame - g;
+        for (c = 0; c < D; ++c) {
+            int64_t dq = unzig(rice(p, &bb, R->k[c + 1u], R->mk[c + 1u]));
+            k->q[c] = forward ? a->q[c] + dq : a->q[c] - dq;
+        }
+        if (D == 3u) k->q[3] = 0;
+        r = forward ? r + 1u : r - 1u;
+        if (forward ? k->frame > xi : k->frame <= xi) break;
+    }
+    *bit = bb;
+    return r;
+}
+static uint32_t run_fwd(const track* t, const reader* R, uint64_t* bit, kv* b, uint32_t r, uint32_t to, uint32_t xi) {
+    return t->d == 3u ? run_d(t, R, bit, b, r, to, xi, 1, 3u) : run_d(t, R, bit, b, r, to, xi, 1, 4u);
+}
+/* xi = 0: to rank `to` (no backward key is at frame 0) */
+static uint32_t run_back(const track* t, const reader* R, uint64_t* bit, kv* b, uint32_t r, uint32_t to, uint32_t xi) {
+    return t->d == 3u ? run_d(t, R, bit, b, r, to, xi, 0, 3u) : run_d(t, R, bit, b, r, to, xi, 0, 4u);
 }
 
 /* Playback: the key after L's; 0 past the last key. Entering a block's backward half decodes it
  * whole into t->back. */
 static int next2(const track* t, lstate* L) {
     reader* R = &L->R;
-    uint32_t h = half(t, R), k;
+    uint32_t h = half(t, R);
     if (R->r < h) {
         step(t, R, &L->key, &L->key);
         return 1;
@@ -290,7 +315,7 @@ static int next2(const track* t, lstate* L) {
             reader N;
             uint64_t bit = R->vbit;
             load_row(t, R->e + 1u, &N, &t->back[R->n]);
-            for (k = R->n - 1u; k > h; --k) back_step(t, R, &bit, &t->back[k + 1u], &t->back[k]);
+            run_back(t, R, &bit, t->back, R->n, h + 1u, 0);
         }
         L->key = t->back[++R->r];
         return 1;
@@ -310,36 +335,49 @@ typedef struct view {
     uint64_t bbit;
 } view;
 
-static void fw_to(const track* t, view* V, uint32_t rank) {
+/* Forward keys up to `rank`, or (xi < ~0) up to the first after xi; the last rank decoded. */
+static uint32_t fw_to(const track* t, view* V, uint32_t rank, uint32_t xi) {
+    uint32_t r = V->fn - 1u;
+    if (rank > r) {
+        r = run_fwd(t, &V->R, &V->R.gbit, V->fw, r, rank, xi);
 #ifdef RMAL_V3_PHASES
-    walked += rank >= V->fn ? rank + 1u - V->fn : 0u;
+        walked += r + 1u - V->fn;
 #endif
-    for (; V->fn <= rank; ++V->fn) step(t, &V->R, &V->fw[V->fn - 1u], &V->fw[V->fn]);
+        V->fn = r + 1u;
+        V->R.r = r;
+    }
+    return r;
 }
 static void next_anchor(const track* t, view* V) {
     if (!V->have_next) load_row(t, V->R.e + 1u, &V->N, &t->back[V->R.n]), V->have_next = 1;
 }
-static void bw_to(const track* t, view* V, uint32_t rank) {
+/* Backward keys down to `rank`, or (xi > 0) down to the first at or before xi; the lowest rank
+ * decoded. */
+static uint32_t bw_to(const track* t, view* V, uint32_t rank, uint32_t xi) {
     next_anchor(t, V);
     if (V->blo > V->R.n) V->blo = V->R.n;
+    if (V->blo > rank) {
+        uint32_t r = run_back(t, &V->R, &V->bbit, t->back, V->blo, rank, xi);
 #ifdef RMAL_V3_PHASES
-    walked += V->blo > rank ? V->blo - rank : 0u;
+        walked += V->blo - r;
 #endif
-    for (; V->blo > rank; --V->blo) back_step(t, &V->R, &V->bbit, &t->back[V->blo], &t->back[V->blo - 1u]);
+        V->blo = r;
+    }
+    return V->blo;
 }
 static const kv* at_rank(const track* t, view* V, uint32_t rank) {
     if (rank <= V->h) {
-        fw_to(t, V, rank);
+        fw_to(t, V, rank, ~0u);
         return &V->fw[rank];
     }
-    bw_to(t, V, rank);
+    bw_to(t, V, rank, 0);
     return &t->back[rank];
 }
 
 static void locate2(const track* t, state* s, float x) {
     uint32_t xi = (uint32_t)x, i, n, last, slot;
     view V;
-    kv prev, after;
+    kv after;
     if (xi >= t->frames - 1u) xi = t->frames - 2u;
 #ifdef RMAL_V3_PHASES
     walks++;
@@ -349,23 +387,20 @@ static void locate2(const track* t, state* s, float x) {
     last = V.R.e + 1u >= t->blocks;
     V.h = half(t, &V.R), V.fn = 1, V.blo = n + 1u, V.have_next = 0, V.bbit = V.R.vbit;
     i = V.h; /* key i: the last at or before xi */
+    /* search from the anchor nearer x (by frame); the other half when x is not in the first */
     if (!last && 2u * (xi - V.fw[0].frame) >= first_frame(t, V.R.e + 1u) - V.fw[0].frame) {
-        uint32_t r;
-        for (r = n; r > V.h + 1u; --r) { /* backward from the next anchor */
-            bw_to(t, &V, r - 1u);
-            if (t->back[r - 1u].frame <= xi) break;
-        }
-        if (r > V.h + 1u) {
-            i = r - 1u;
-        } else {
-            for (i = 0; i < V.h && at_rank(t, &V, i + 1u)->frame <= xi; ++i) {}
+        i = bw_to(t, &V, V.h + 1u, xi); /* backward from the next anchor */
+        if (t->back[i].frame > xi) {     /* key i is in the forward half */
+            i = fw_to(t, &V, V.h, xi);
+            if (V.fw[i].frame > xi) --i;
         }
     } else {
-        for (i = 0; i < V.h && at_rank(t, &V, i + 1u)->frame <= xi; ++i) {}
-        if (i == V.h && !last) { /* past the forward half */
-            uint32_t r;
-            for (r = n; r > V.h + 1u && at_rank(t, &V, r - 1u)->frame > xi; --r) {}
-            i = r - 1u;
+        i = fw_to(t, &V, V.h, xi);
+        if (V.fw[i].frame > xi) {
+            --i;
+        } else if (!last) { /* past the forward half */
+            i = bw_to(t, &V, V.h + 1u, xi);
+            if (t->back[i].frame > xi) i = V.h;
         }
     }
     /* the window: keys i - 1 ... i + 2 */
@@ -373,12 +408,13 @@ static void locate2(const track* t, state* s, float x) {
         put_key(t, s, 0, at_rank(t, &V, i - 1u)->frame, at_rank(t, &V, i - 1u)->q);
     } else if (V.R.e > 0) { /* the previous block's last key: one backward step from this anchor */
         reader P;
-        kv a;
+        kv b[2];
         uint64_t bit;
-        load_row(t, V.R.e - 1u, &P, &a);
+        load_row(t, V.R.e - 1u, &P, &b[0]);
         bit = P.vbit;
-        back_step(t, &P, &bit, &V.fw[0], &prev);
-        put_key(t, s, 0, prev.frame, prev.q);
+        b[1] = V.fw[0];
+        run_back(t, &P, &bit, b, 1, 0, 0);
+        put_key(t, s, 0, b[0].frame, b[0].q);
     }
     put_key(t, s, 1, at_rank(t, &V, i)->frame, at_rank(t, &V, i)->q);
     for (slot = 2; slot < 4u; ++slot) { /* keys i + 1 and i + 2; the reader left at the last */
