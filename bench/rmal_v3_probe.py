@@ -29,8 +29,28 @@ fixed-width records (per component a residual, no escapes):
 ``FB prev (size reference)`` (the same predictor with v2's anchor widths, every block shift and
 time mode) and the ``entropy floor`` are printed for comparison.
 
+Candidate family "entropy-coded blocks" (EB, ``--eb``): each track's keys are cut into blocks of
+K = 2^b keys (keys eK ... eK + K - 1 form block e; the last block may be shorter; K fixed per
+file, 8 ... 64, or per track the K in 8 ... 128 with the fewest bytes). One row per block, at a
+fixed bit stride in the track's row table: the frame of the block's first key (bits of the clip's
+last frame), the bit offset of the block's data, in the "gaps first" and "two-way" orders the bit
+length of the block's first part, a 5-bit Rice parameter for the gaps then one per component, and
+each component's anchor (the block's first key's lattice integer, whole, at v2's anchor width).
+A block's data holds, for each key after its first, gap - 1 (gap: the frame difference to the key
+before) and each component's difference from the key before, zigzag-mapped, each a Rice code with
+its stream's parameter k: the quotient z >> k as that many 0 bits closed by a 1 (least
+significant bit first), then the k low bits; a quotient of 16 or more is an escape, 16 zeros
+then z in 32 raw bits (so a code is at most 48 bits: one 64-bit load holds it). Each block's
+parameters are the fewest bits, escapes counted. Code orders: ``interleaved``, per key its gap
+code then its component codes; ``gaps first``, the block's gap codes, then per key its component
+codes; ``two-way``, keys 1 ... K/2 forward (interleaved), then keys K - 1 ... K/2 + 1 backward, each
+from the key after it (the step into key K, the next row's anchor, is stored; the one from key K/2
+to K/2 + 1 is not; the last block is all forward). Track bytes: the row table and the data area,
+each padded to 4 bytes, in a payload counted as for FB.
+
 Run: ``python bench/rmal_v3_probe.py [--write DIR]`` (sizes of both dev assets; ``--write``
-also writes ``DIR/<asset>.v3p`` for the prototype decoder).
+also writes ``DIR/<asset>.v3p`` for the prototype decoder); ``--eb [--write DIR]`` the EB
+candidates and ``DIR/rma_<tolerance>_<K>_v<order>.v3e`` for bench/rmal_v3_eb.c.
 """
 from __future__ import annotations
 
