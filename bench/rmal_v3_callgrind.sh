@@ -1,27 +1,43 @@
 #!/bin/sh
-# Instructions per pose of the RMAL v2 reader (runtime_c, via /tmp/ps/once.c or any copy of it)
-# and of the v3 prototype (bench/rmal_v3_proto.c) on the same keys, under callgrind.
-#   bench/rmal_v3_callgrind.sh OUT_DIR ONCE_C V2_ASSET_1CM V2_ASSET_002 V3P_1CM V3P_002
-# Per pose = (Ir of mode m - Ir of mode 3, which only loads) / poses of mode m.
+# Instructions per pose under callgrind of the RMAL v2 reader (runtime_c, through a copy of
+# /tmp/ps/once.c: modes none, seq, rand, step2) and of the v3 prototypes on the same keys
+# (bench/rmal_v3_proto.c for .v3p files, bench/rmal_v3_eb.c for .v3e: modes 3, 0, 1, 2).
+#   bench/rmal_v3_callgrind.sh OUT_DIR ONCE_C FILE...     (FILE: .mcd, .v3p or .v3e)
+# Per pose = (Ir of a mode - Ir of the load-only mode) / poses of the mode. Two runs at a time.
 set -e
-out=$1 once=$2; a1=$3 a2=$4 p1=$5 p2=$6
+out=$1 once=$2
+shift 2
 root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
 flags="-O3 -march=x86-64-v2 -DNDEBUG -std=c99"
-nice -n 19 gcc $flags -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c "$once" -lm -o "$out/once"
-nice -n 19 gcc $flags -Wall -Wextra -pedantic -Werror "$root/bench/rmal_v3_proto.c" -lm -o "$out/proto"
-run() { # name binary file mode
-    nice -n 19 valgrind --tool=callgrind --callgrind-out-file="$out/$1.$4.cg" "$2" "$3" "$4" > "$out/$1.$4.log" 2>&1
-}
-for m in 3 0 1 2; do
-    run v2_1cm "$out/once" "$a1" $m; run v2_002 "$out/once" "$a2" $m
-    run v3_1cm "$out/proto" "$p1" $m; run v3_002 "$out/proto" "$p2" $m
+gcc $flags -D_ISOC11_SOURCE -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c "$once" -lm -o "$out/once"
+# The prototypes use the runtime's rotation and segment arithmetic (runtime_c/src/internal.h,
+# curve.c): the runtime is built with the bench flags only, the prototypes also with -Werror.
+mkdir -p "$out/rt"
+(cd "$out/rt" && gcc $flags -c -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c && ar rcs ../rt.a ./*.o)
+for p in proto eb; do
+    gcc $flags -Wall -Wextra -pedantic -Werror -I"$root/runtime_c/include" -I"$root/runtime_c/src" \
+        "$root/bench/rmal_v3_$p.c" "$out/rt.a" -lm -o "$out/$p"
 done
-for s in v2_1cm v2_002 v3_1cm v3_002; do
-    base=$(grep -o 'refs: *[0-9,]*' "$out/$s.3.log" | tr -dc 0-9)
-    for m in 0 1 2; do
-        ir=$(grep -o 'refs: *[0-9,]*' "$out/$s.$m.log" | tr -dc 0-9)
-        poses=$(grep -o 'poses [0-9]*' "$out/$s.$m.log" | tr -dc 0-9)
-        echo "$s mode $m: $(( (ir - base) / poses )) instructions per pose ($ir Ir, $poses poses)"
+jobs=""
+for f in "$@"; do
+    case $f in
+    *.mcd) bin=once modes="none seq rand step2" ;;
+    *.v3p) bin=proto modes="3 0 1 2" ;;
+    *) bin=eb modes="3 0 1 2" ;;
+    esac
+    for m in $modes; do jobs="$jobs $bin:$m:$f"; done
+done
+echo $jobs | tr ' ' '\n' | xargs -P 2 -I{} sh -c '
+    bin=${1%%:*} rest=${1#*:}; m=${rest%%:*} f=${rest#*:}; n=$(basename "$f")
+    valgrind --tool=callgrind --callgrind-out-file="$0/$n.$m.cg" "$0/$bin" "$f" "$m" > "$0/$n.$m.log" 2>&1' "$out" {}
+for f in "$@"; do
+    n=$(basename "$f")
+    case $f in *.mcd) set -- none seq rand step2 ;; *) set -- 3 0 1 2 ;; esac
+    base=$(grep -o 'refs: *[0-9,]*' "$out/$n.$1.log" | tr -dc 0-9)
+    for m in $2 $3 $4; do
+        ir=$(grep -o 'refs: *[0-9,]*' "$out/$n.$m.log" | tr -dc 0-9)
+        poses=$(grep -o 'poses [0-9]*' "$out/$n.$m.log" | tr -dc 0-9)
+        echo "$n $m: $(( (ir - base) / poses )) instructions per pose ($ir Ir, $poses poses, load only $base Ir)"
     done
 done

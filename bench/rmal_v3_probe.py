@@ -29,8 +29,28 @@ fixed-width records (per component a residual, no escapes):
 ``FB prev (size reference)`` (the same predictor with v2's anchor widths, every block shift and
 time mode) and the ``entropy floor`` are printed for comparison.
 
+Candidate family "entropy-coded blocks" (EB, ``--eb``): each track's keys are cut into blocks of
+K = 2^b keys (keys eK ... eK + K - 1 form block e; the last block may be shorter; K fixed per
+file, 8 ... 64, or per track the K in 8 ... 128 with the fewest bytes). One row per block, at a
+fixed bit stride in the track's row table: the frame of the block's first key (bits of the clip's
+last frame), the bit offset of the block's data, in the "gaps first" and "two-way" orders the bit
+length of the block's first part, a 5-bit Rice parameter for the gaps then one per component, and
+each component's anchor (the block's first key's lattice integer, whole, at v2's anchor width).
+A block's data holds, for each key after its first, gap - 1 (gap: the frame difference to the key
+before) and each component's difference from the key before, zigzag-mapped, each a Rice code with
+its stream's parameter k: the quotient z >> k as that many 0 bits closed by a 1 (least
+significant bit first), then the k low bits; a quotient of 16 or more is an escape, 16 zeros
+then z in 32 raw bits (so a code is at most 48 bits: one 64-bit load holds it). Each block's
+parameters are the fewest bits, escapes counted. Code orders: ``interleaved``, per key its gap
+code then its component codes; ``gaps first``, the block's gap codes, then per key its component
+codes; ``two-way``, keys 1 ... K/2 forward (interleaved), then keys K - 1 ... K/2 + 1 backward, each
+from the key after it (the step into key K, the next row's anchor, is stored; the one from key K/2
+to K/2 + 1 is not; the last block is all forward). Track bytes: the row table and the data area,
+each padded to 4 bytes, in a payload counted as for FB.
+
 Run: ``python bench/rmal_v3_probe.py [--write DIR]`` (sizes of both dev assets; ``--write``
-also writes ``DIR/<asset>.v3p`` for the prototype decoder).
+also writes ``DIR/<asset>.v3p`` for the prototype decoder); ``--eb [--write DIR]`` the EB
+candidates and ``DIR/rma_<tolerance>_<K>_v<order>.v3e`` for bench/rmal_v3_eb.c.
 """
 from __future__ import annotations
 
@@ -51,8 +71,8 @@ from mocodec.codecs.rma_reference import decode_keys  # noqa: E402
 from mocodec.container import read_summary  # noqa: E402
 
 ASSETS = {
-    "1cm": Path("/work/main/bench/results/assets/rma_1cm_796bbeadd2_89f4b3d68b.mcd"),
-    "0.02cm": Path("/work/main/bench/results/assets/rma_0.02cm_796bbeadd2_89f4b3d68b.mcd"),
+    "1cm": Path("/work/main/bench/results/assets/rma_1cm_796bbeadd2_72a1863447.mcd"),
+    "0.02cm": Path("/work/main/bench/results/assets/rma_0.02cm_796bbeadd2_72a1863447.mcd"),
 }
 # Issue 15's disk targets: 1.15 x the entropy-coded format 1 asset (whole asset bytes).
 TARGETS = {"1cm": 351_955, "0.02cm": 2_663_455}
@@ -175,8 +195,28 @@ def knot_fit(frames: np.ndarray, q: np.ndarray, b: int, blocks: int) -> np.ndarr
     return solve_banded((1, 1), ab, rhs)
 
 
+class PackedSize:
+    """A track's bytes in a v3 payload: its row table and its data area, each padded to 4."""
+
+    rows: int
+    row_bits: int
+    data_bits: int
+
+    @property
+    def table_bytes(self) -> int:
+        return 4 * ((self.rows * self.row_bits + 31) // 32)
+
+    @property
+    def data_bytes(self) -> int:
+        return 4 * ((self.data_bits + 31) // 32)
+
+    @property
+    def bytes(self) -> int:
+        return self.table_bytes + self.data_bytes
+
+
 @dataclass
-class BlockLayout:
+class BlockLayout(PackedSize):
     """One track in the frame-block layout: everything the writer packs, and its bytes."""
 
     b: int
@@ -199,18 +239,6 @@ class BlockLayout:
     data_bits: int
     time_bits: int
     value_bits: int
-
-    @property
-    def table_bytes(self) -> int:
-        return 4 * ((self.rows * self.row_bits + 31) // 32)
-
-    @property
-    def data_bytes(self) -> int:
-        return 4 * ((self.data_bits + 31) // 32)
-
-    @property
-    def bytes(self) -> int:
-        return self.table_bytes + self.data_bytes
 
 
 def _runs(j: np.ndarray, blocks: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -366,87 +394,295 @@ def payload_bytes(clip: Clip, track_bytes: list[int]) -> int:
     return (at + 8 + 3) // 4 * 4
 
 
-def evaluate(name: str, clips: list[Clip], prefix: int, preds: tuple[str, ...], **kw: object) -> dict:
-    """Asset bytes of the candidate and where they go."""
+def tally(name: str, clips: list[Clip], prefix: int, choose, parts_of, label) -> dict:
+    """Asset bytes of a candidate whose layout of a track is ``choose(t)``, and where they go:
+    ``parts_of(L)`` a track's parts in bits (rows and head in bytes), ``label(L)`` its choice."""
     total = prefix
-    parts = dict(rows=0, times=0, values=0, head=0)
+    parts: dict[str, int] = {}
     choice: dict[str, int] = {}
     layouts = []
     for clip in clips:
-        ls = [best_layout(t, preds, **kw) for t in clip.tracks]  # type: ignore[arg-type]
+        ls = [choose(t) for t in clip.tracks]
         layouts.append(ls)
         p = payload_bytes(clip, [L.bytes for L in ls])
         total += p
-        parts["rows"] += sum(L.table_bytes for L in ls)
-        parts["times"] += sum(L.time_bits for L in ls) // 8
-        parts["values"] += sum(L.value_bits for L in ls) // 8
-        parts["head"] += p - sum(L.bytes for L in ls)
+        parts["rows"] = parts.get("rows", 0) + sum(L.table_bytes for L in ls)
+        clip_bits: dict[str, int] = {}
         for L in ls:
-            key = f"{L.pred} B={1 << L.b} {('mask', 'gaps')[L.tmode]}"
-            choice[key] = choice.get(key, 0) + 1
+            for k, v in parts_of(L).items():
+                clip_bits[k] = clip_bits.get(k, 0) + v
+            choice[label(L)] = choice.get(label(L), 0) + 1
+        for k, v in clip_bits.items():  # whole bytes per clip
+            parts[k] = parts.get(k, 0) + v // 8
+        parts["head"] = parts.get("head", 0) + p - sum(L.bytes for L in ls)
     return dict(candidate=name, asset_bytes=total, **parts,
                 choices=dict(sorted(choice.items(), key=lambda kv: -kv[1])[:6]), layouts=layouts)
 
 
-def write_proto(path: Path, clips: list[Clip], layouts: list[list[BlockLayout]]) -> None:
-    """The prototype's input (bench/rmal_v3_proto.c), little-endian: "V3P1", clip count; per
-    clip frame count, track count, blob bytes, one 64-byte record per track, then the blob:
-    every track's row table and data area exactly as a v3 payload would hold them, then 8
-    zero bytes."""
-    out = bytearray(struct.pack("<4sI", b"V3P1", len(clips)))
+def evaluate(name: str, clips: list[Clip], prefix: int, preds: tuple[str, ...], **kw: object) -> dict:
+    """Asset bytes of the candidate and where they go."""
+    return tally(name, clips, prefix, lambda t: best_layout(t, preds, **kw),  # type: ignore[arg-type]
+                 lambda L: dict(times=L.time_bits, values=L.value_bits),
+                 lambda L: f"{L.pred} B={1 << L.b} {('mask', 'gaps')[L.tmode]}")
+
+
+def track_record(t: Track, layout_bytes: tuple[int, int, int, int], words: tuple[int, ...], abits: list[int],
+                 extra: list[int]) -> bytes:
+    """A track's 68-byte record in the prototypes' input (bench/rmal_v3_shared.h, load): kind,
+    d, split, slot, node and v2's step, reference, twist axis and angle step, and the layout's
+    own fields (bytes 3, 4, 5, 7; six 32-bit words; four anchor widths; four more bytes)."""
+    pad = lambda v: list(v) + [0] * (4 - len(v))  # noqa: E731
+    b3, b4, b5, b7 = layout_bytes
+    rec = struct.pack("<8B2H6I4B4B", t.kind, t.d, int(t.split), b3, b4, b5, t.slot, b7, t.node, 0, *words,
+                      *pad(abits), *pad(extra))
+    dd = t.desc + bytes(40 - len(t.desc))
+    return rec + dd[12:16] + dd[20:40]  # step, reference, twist axis, angle step as v2 stores them
+
+
+def write_file(path: Path, magic: bytes, clips: list[Clip], layouts: list[list], pack) -> None:
+    """A prototype's input (bench/rmal_v3_shared.h, load), little-endian: ``magic``, clip count;
+    per clip frame count, track count, blob bytes, one 68-byte record per track, then the blob:
+    every track's row table and data area exactly as a v3 payload would hold them, then 8 zero
+    bytes. ``pack(t, L)`` gives a track's table, data and record fields."""
+    out = bytearray(struct.pack("<4sI", magic, len(clips)))
     for clip, ls in zip(clips, layouts):
         blob = bytearray()
         recs = bytearray()
         for t, L in zip(clip.tracks, ls):
-            d = t.d
-            blocks = len(L.counts)
-            rw = BitWriter()
-            for e in range(L.rows):
-                inside = e < blocks
-                rw.write(int(L.counts[e]) if inside else 0, L.nbits)
-                if L.tmode:
-                    rw.write(int(L.gap_widths[e]) if inside else 0, 4)
-                rw.write(int(L.offsets[e]), L.offset_bits)
-                for c in range(d):
-                    rw.write(int(L.widths[e, c]) if inside else 0, WIDTH_BITS)
-                for c in range(d):
-                    a = int(L.anchors[e, c]) >> L.kshift[c]
-                    rw.write(a & ((1 << L.abits[c]) - 1), L.abits[c])
-            table = rw.getvalue()
-            table += bytes(L.table_bytes - len(table))
-            dw = BitWriter()
-            o = t.frames - (L.block_of_key << L.b)
-            k0 = 0
-            for e in range(blocks):
-                n = int(L.counts[e])
-                if n == 0:
-                    continue
-                sl = slice(k0, k0 + n)
-                if L.tmode == 0:
-                    m = 0
-                    for x in o[sl]:
-                        m |= 1 << int(x)
-                    for h in range(0, 1 << L.b, 32):
-                        dw.write((m >> h) & 0xFFFFFFFF, min(32, (1 << L.b) - h))
-                else:
-                    dw.write(L.gaps[sl], int(L.gap_widths[e]))
-                w = L.widths[e]
-                first = 1 if L.pred == "prev" else 0  # prev: the first key is the row's anchor
-                dw.write(L.residuals[sl][first:].ravel(), np.tile(w, n - first))
-                k0 += n
-            data = dw.getvalue()
-            assert dw.bit_length == L.data_bits, (dw.bit_length, L.data_bits)
-            data += bytes(L.data_bytes - len(data))
-            pad = lambda v: list(v) + [0] * (4 - d)  # noqa: E731
-            recs += struct.pack("<8B2H6I4B4B", t.kind, d, int(t.split), L.b, L.tmode, PREDICTORS.index(L.pred), t.slot,
-                                L.nbits, t.node, 0, len(t.frames), L.rows, L.row_bits, L.offset_bits, len(blob),
-                                len(blob) + len(table), *pad(L.abits), *pad(L.kshift))
-            dd = t.desc + bytes(40 - len(t.desc))
-            recs += dd[12:16] + dd[20:40]  # step, reference, twist axis, angle step as v2 stores them
+            table, data, layout_bytes, words, abits, extra = pack(t, L)
+            assert len(table) == L.table_bytes and len(data) == L.data_bytes
+            words = (len(t.frames), *words, len(blob), len(blob) + len(table))
+            recs += track_record(t, layout_bytes, words, abits, extra)
             blob += table + data
         blob += bytes(8)
         out += struct.pack("<III", clip.frame_count, len(clip.tracks), len(blob)) + recs + blob
     path.write_bytes(bytes(out))
+
+
+def padded(w: BitWriter, nbytes: int) -> bytes:
+    b = w.getvalue()
+    return b + bytes(nbytes - len(b))
+
+
+def fb_pack(t: Track, L: BlockLayout):
+    """An FB track for bench/rmal_v3_proto.c ("V3P1")."""
+    d = t.d
+    blocks = len(L.counts)
+    rw = BitWriter()
+    for e in range(L.rows):
+        inside = e < blocks
+        rw.write(int(L.counts[e]) if inside else 0, L.nbits)
+        if L.tmode:
+            rw.write(int(L.gap_widths[e]) if inside else 0, 4)
+        rw.write(int(L.offsets[e]), L.offset_bits)
+        for c in range(d):
+            rw.write(int(L.widths[e, c]) if inside else 0, WIDTH_BITS)
+        for c in range(d):
+            a = int(L.anchors[e, c]) >> L.kshift[c]
+            rw.write(a & ((1 << L.abits[c]) - 1), L.abits[c])
+    dw = BitWriter()
+    o = t.frames - (L.block_of_key << L.b)
+    k0 = 0
+    for e in range(blocks):
+        n = int(L.counts[e])
+        if n == 0:
+            continue
+        sl = slice(k0, k0 + n)
+        if L.tmode == 0:
+            m = 0
+            for x in o[sl]:
+                m |= 1 << int(x)
+            for h in range(0, 1 << L.b, 32):
+                dw.write((m >> h) & 0xFFFFFFFF, min(32, (1 << L.b) - h))
+        else:
+            dw.write(L.gaps[sl], int(L.gap_widths[e]))
+        w = L.widths[e]
+        first = 1 if L.pred == "prev" else 0  # prev: the first key is the row's anchor
+        dw.write(L.residuals[sl][first:].ravel(), np.tile(w, n - first))
+        k0 += n
+    assert dw.bit_length == L.data_bits, (dw.bit_length, L.data_bits)
+    return (padded(rw, L.table_bytes), padded(dw, L.data_bytes), (L.b, L.tmode, PREDICTORS.index(L.pred), L.nbits),
+            (L.rows, L.row_bits, L.offset_bits), L.abits, L.kshift)
+
+
+def write_proto(path: Path, clips: list[Clip], layouts: list[list[BlockLayout]]) -> None:
+    """The FB prototype's input (bench/rmal_v3_proto.c)."""
+    write_file(path, b"V3P1", clips, layouts, fb_pack)
+
+
+# ---------------------------------------------------------------- EB: entropy-coded blocks
+EB_SHIFTS = (3, 4, 5, 6, 7)  # K = 8 ... 128 keys per block
+EB_VARIANTS = ("interleaved", "gaps first", "two-way")
+RICE_CAP = 16  # a quotient of 16 or more is an escape: 16 zeros, then the symbol in 32 raw bits
+RICE_RAW = 32
+RICE_KMAX = 31  # 5-bit parameters
+PARAM_BITS = 5
+HEAD_BITS_MAX = 57  # first frame, offset (and gap stream length): one 64-bit load; the parameters another
+
+
+def zigzag(x: np.ndarray) -> np.ndarray:
+    return np.where(x >= 0, 2 * x, -2 * x - 1)
+
+
+def rice_bits(z: np.ndarray, k: np.ndarray) -> np.ndarray:
+    q = z >> k
+    return np.where(q < RICE_CAP, q + 1 + k, RICE_CAP + RICE_RAW)
+
+
+def rice_fields(z: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Each code as two fields, least significant bit first: the quotient q as q zeros closed by
+    a one (a count of trailing zeros finds it), then the k low bits; an escape is RICE_CAP zeros,
+    then the symbol in RICE_RAW bits. Returns (unary value, width, low value, width)."""
+    q = z >> k
+    esc = q >= RICE_CAP
+    uv = np.where(esc, 0, np.left_shift(1, np.minimum(q, RICE_CAP - 1)))
+    return uv, np.where(esc, RICE_CAP, q + 1), np.where(esc, z, z & ((1 << k) - 1)), np.where(esc, RICE_RAW, k)
+
+
+@dataclass
+class EBLayout(PackedSize):
+    """One track in the entropy-coded-block layout (module docstring, "EB")."""
+
+    rows: int
+    row_bits: int
+    data_bits: int
+    shift: int  # K = 2^shift keys per block
+    variant: int  # EB_VARIANTS index
+    fbits: int
+    obits: int
+    lbits: int  # bits of the gap stream's length (gaps first) or the forward part's (two-way), else 0
+    first_frames: np.ndarray  # (rows,)
+    offsets: np.ndarray  # (rows,) bit offset of the block's data
+    gap_len: np.ndarray  # (rows,) bits of the block's gap codes (gaps first) or forward part (two-way)
+    anchors: np.ndarray  # (rows, d) the block's first key whole
+    abits: list[int]
+    params: np.ndarray  # (rows, d + 1) Rice parameters: gaps, then each component
+    symbols: np.ndarray  # (n, d + 1) gap - 1 and zigzag differences of the keys after each block's first
+    sym_block: np.ndarray  # (n,) block of each symbol
+    gap_bits: int
+    value_bits: int
+    escapes: int
+
+
+def eb_layout(t: Track, shift: int, variant: int = 0) -> EBLayout:
+    """Blocks of K = 2^shift keys; per block and stream the Rice parameter with the fewest bits."""
+    K, f, d = 1 << shift, t.frames, t.d
+    N = len(f)
+    rows = (N + K - 1) // K
+    T = np.column_stack([np.diff(f) - 1, zigzag(np.diff(t.q, axis=0))])  # T[k]: from key k to key k + 1
+    tix = np.arange(N - 1)
+    blk_t, j = tix >> shift, tix & (K - 1)
+    if variant == 2:  # two-way: keys 1 ... K/2 forward from the anchor, K/2 + 1 ... K - 1 backward from the
+        # next row's anchor (the last block: all forward); the step from key K/2 to K/2 + 1 is not stored
+        inner = blk_t < rows - 1
+        back = inner & (j > K // 2)
+        order = np.lexsort((np.where(back, -j, j), back, blk_t))
+        sel = order[~(inner & (j == K // 2))[order]]
+    else:
+        sel = tix[j != K - 1]  # the step into a block's first key is its row's anchor
+        back = np.zeros(N - 1, dtype=bool)
+    S, blk, back = T[sel], blk_t[sel], back[sel]
+    assert S.size == 0 or (S.min() >= 0 and S.max() < 1 << RICE_RAW)
+    ks = np.arange(RICE_KMAX + 1)
+    cost = rice_bits(S[:, None, :], ks[None, :, None])  # (n, k, stream)
+    cs = np.concatenate([np.zeros((1,) + cost.shape[1:], np.int64), np.cumsum(cost, 0)])
+    e = np.arange(rows)
+    per = cs[np.searchsorted(blk, e, "right")] - cs[np.searchsorted(blk, e)]  # (rows, k, stream)
+    params = per.argmin(1)
+    bits = np.take_along_axis(per, params[:, None, :], 1)[:, 0, :]
+    block_bits = bits.sum(1)
+    offsets = np.concatenate([[0], np.cumsum(block_bits)])[:-1]
+    data_bits = int(block_bits.sum())
+    anchors = t.q[::K]
+    for c in range(d):  # the anchor is a key whole: v2's anchor width holds it
+        lim = 1 << (t.abits[c] - 1)
+        assert -lim <= anchors[:, c].min() and anchors[:, c].max() < lim, (c, t.abits[c])
+    fbits, obits = bits_for(t.frame_count - 1), bits_for(data_bits)
+    if variant == 2:  # the row says where the backward part starts: the forward part's length
+        fwd = rice_bits(S, params[blk]).sum(1) if S.size else np.zeros(0, np.int64)
+        part = np.bincount(blk[~back], fwd[~back], minlength=rows).astype(np.int64)
+    else:
+        part = bits[:, 0]  # gaps first: the gap codes' length
+    lbits = bits_for(int(part.max(initial=0))) if variant else 0
+    assert fbits + obits + lbits <= HEAD_BITS_MAX
+    row_bits = fbits + obits + lbits + PARAM_BITS * (d + 1) + sum(t.abits[:d])
+    esc = int((S >> params[blk] >= RICE_CAP).sum()) if S.size else 0
+    return EBLayout(rows, row_bits, data_bits, shift, variant, fbits, obits, lbits, f[::K], offsets, part,
+                    anchors, list(t.abits[:d]), params, S, blk, int(bits[:, 0].sum()), int(bits[:, 1:].sum()), esc)
+
+
+def best_eb(t: Track, shifts: tuple[int, ...], variant: int) -> EBLayout:
+    return min((eb_layout(t, b, variant) for b in shifts), key=lambda L: L.bytes)
+
+
+def eb_pack(t: Track, L: EBLayout):
+    """An EB track for bench/rmal_v3_eb.c ("V3E1"). Row: first frame, data offset, (gap stream
+    length,) Rice parameters (gaps, then each component), anchors. Data per block: interleaved,
+    per key its gap code then each component's code; gaps first, every gap code of the block,
+    then per key each component's code; two-way, interleaved, keys 1 ... K/2 then K ... K/2 + 2 (the
+    steps into them from the key before)."""
+    d = t.d
+    cols = [L.first_frames, L.offsets] + ([L.gap_len] if L.lbits else []) + [L.params[:, c] for c in range(d + 1)]
+    cols += [L.anchors[:, c] & ((1 << L.abits[c]) - 1) for c in range(d)]
+    widths = [L.fbits, L.obits] + ([L.lbits] if L.lbits else []) + [PARAM_BITS] * (d + 1) + L.abits
+    rw = BitWriter()
+    rw.write(np.stack(cols, 1).ravel(), np.tile(widths, L.rows))
+    uv, uw, lv, lw = rice_fields(L.symbols, L.params[L.sym_block])
+    v, w = np.stack([uv, lv], -1), np.stack([uw, lw], -1)  # (n, stream, part)
+    dw = BitWriter()
+    if L.variant != 1:
+        dw.write(v.ravel(), w.ravel())
+    else:
+        for e in range(L.rows):
+            sl = L.sym_block == e
+            dw.write(v[sl, 0].ravel(), w[sl, 0].ravel())
+            dw.write(v[sl, 1:].ravel(), w[sl, 1:].ravel())
+    assert dw.bit_length == L.data_bits, (dw.bit_length, L.data_bits)
+    return (padded(rw, L.table_bytes), padded(dw, L.data_bytes), (L.shift, L.variant, 0, L.fbits),
+            (L.rows, L.row_bits, L.obits), L.abits, [L.lbits])
+
+
+def evaluate_eb(name: str, clips: list[Clip], prefix: int, shifts: tuple[int, ...], variant: int) -> dict:
+    """Asset bytes of an EB candidate (the fewest bytes over ``shifts`` per track) and where
+    they go (data padding: the data areas' padding to 4 bytes; escapes: a count, not bytes)."""
+    return tally(name, clips, prefix, lambda t: best_eb(t, shifts, variant),
+                 lambda L: dict(gaps=L.gap_bits, values=L.value_bits, data_padding=8 * L.data_bytes - L.data_bits,
+                                escapes=8 * L.escapes),
+                 lambda L: f"K={1 << L.shift}")
+
+
+EB_CANDIDATES = (("EB K=8", (3,)), ("EB K=16", (4,)), ("EB K=32", (5,)), ("EB K=64", (6,)),
+                 ("EB best K (8 ... 128)", EB_SHIFTS), ("EB best K (16, 32, 64)", (4, 5, 6)))
+
+
+def eb_main(args: argparse.Namespace) -> None:
+    """Bytes of the EB candidates on the dev assets, and the prototype's input files."""
+    report = {}
+    for tol in args.tolerances.split(","):
+        path = ASSETS[tol]
+        prefix, clips = load_asset(path)
+        v2 = prefix + sum(c.v2_size for c in clips)
+        assert v2 == path.stat().st_size, (v2, path.stat().st_size)
+        keys = sum(len(t.frames) for c in clips for t in c.tracks)
+        print(f"## {tol}: v2 {v2:,} B, {keys:,} keys, target {TARGETS[tol]:,} B", flush=True)
+        rows = []
+        for variant in (int(v) for v in args.eb_variants.split(",")):
+            for name, shifts in EB_CANDIDATES:
+                r = evaluate_eb(f"{name}, {EB_VARIANTS[variant]}", clips, prefix, shifts, variant)
+                layouts = r.pop("layouts")
+                if args.write:
+                    args.write.mkdir(parents=True, exist_ok=True)
+                    tag = name.split()[1].replace("=", "") if len(shifts) == 1 else f"best{len(shifts)}"
+                    write_file(args.write / f"rma_{tol}_{tag}_v{variant}.v3e", b"V3E1", clips, layouts, eb_pack)
+                r["vs_v2"] = r["asset_bytes"] / v2
+                r["vs_target"] = r["asset_bytes"] / TARGETS[tol]
+                rows.append(r)
+                print(f"{r['candidate']:38s} {r['asset_bytes']:>10,} B  x{r['vs_v2']:.3f} v2  x{r['vs_target']:.3f} "
+                      f"target  rows {r['rows']:,} gaps {r['gaps']:,} values {r['values']:,} data padding "
+                      f"{r['data_padding']:,} head {r['head']:,} escapes {r['escapes']:,}  {r['choices']}", flush=True)
+        report[tol] = dict(v2=v2, target=TARGETS[tol], keys=keys, outside_payloads=prefix, candidates=rows)
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1))
 
 
 CANDIDATES: tuple[tuple[str, tuple[str, ...], dict], ...] = (
@@ -470,7 +706,13 @@ def main() -> None:
                     help="largest block shift tried (a shorter key-time scan for more bytes)")
     ap.add_argument("--only-proto", action="store_true", help="evaluate only the --proto candidate")
     ap.add_argument("--tolerances", default="1cm,0.02cm", help="which dev assets (1cm, 0.02cm)")
+    ap.add_argument("--eb", action="store_true", help="the entropy-coded block (EB) candidates instead; --write "
+                    "writes rma_<tolerance>_<K>_v<variant>.v3e for bench/rmal_v3_eb.c")
+    ap.add_argument("--eb-variants", default="0,1,2", help="EB code orders: 0 interleaved, 1 gaps first, 2 two-way")
     args = ap.parse_args()
+    if args.eb:
+        eb_main(args)
+        return
     report = {}
     shifts = tuple(b for b in BLOCK_SHIFTS if b <= args.max_block_shift)
     for tol in args.tolerances.split(","):
