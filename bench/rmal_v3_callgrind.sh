@@ -1,22 +1,23 @@
 #!/bin/sh
-# Instructions per pose under callgrind of the RMAL v2 reader (runtime_c, through a copy of
-# /tmp/ps/once.c: modes none, seq, rand, step2) and of the v3 prototypes on the same keys
+# Instructions per pose under callgrind of the RMAL v2 reader (runtime_c, through
+# bench/rmal_v3_poses.c: modes none, seq, rand, step2) and of the v3 prototypes on the same keys
 # (bench/rmal_v3_proto.c for .v3p files, bench/rmal_v3_eb.c for .v3e: modes 3, 0, 1, 2).
-#   bench/rmal_v3_callgrind.sh OUT_DIR ONCE_C FILE...     (FILE: .mcd, .v3p or .v3e)
+#   bench/rmal_v3_callgrind.sh OUT_DIR FILE...     (FILE: .mcd, .v3p or .v3e)
 # Per pose = (Ir of a mode - Ir of the load-only mode) / poses of the mode. Two runs at a time.
 set -e
-out=$1 once=$2
-shift 2
+out=$1
+shift
 root=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
 flags="-O3 -march=x86-64-v2 -DNDEBUG -std=c99"
-gcc $flags -D_ISOC11_SOURCE -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c "$once" -lm -o "$out/once"
+warn="-Wall -Wextra -pedantic -Werror"
+gcc $flags $warn -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c "$root/bench/rmal_v3_poses.c" -lm -o "$out/once"
 # The prototypes use the runtime's rotation and segment arithmetic (runtime_c/src/internal.h,
-# curve.c): the runtime is built with the bench flags only, the prototypes also with -Werror.
+# curve.c), linked from the runtime's objects.
 mkdir -p "$out/rt"
-(cd "$out/rt" && gcc $flags -c -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c && ar rcs ../rt.a ./*.o)
+(cd "$out/rt" && gcc $flags $warn -c -I"$root/runtime_c/include" "$root"/runtime_c/src/*.c && ar rcs ../rt.a ./*.o)
 for p in proto eb; do
-    gcc $flags -Wall -Wextra -pedantic -Werror -I"$root/runtime_c/include" -I"$root/runtime_c/src" \
+    gcc $flags $warn -I"$root/runtime_c/include" -I"$root/runtime_c/src" \
         "$root/bench/rmal_v3_$p.c" "$out/rt.a" -lm -o "$out/$p"
 done
 jobs=""

@@ -7,7 +7,7 @@
  * -Iruntime_c/include -Iruntime_c/src and link the runtime (its curve.c).
  *
  *   rmal_v3_proto FILE.v3p MODE        MODE 0 every frame in order, 1 uniform random times,
- *                                       2 every other frame (same sequence as /tmp/ps/once.c),
+ *                                       2 every other frame (same sequence as bench/rmal_v3_poses.c),
  *                                       3 load only
  *   rmal_v3_check FILE.v3p ASSET.mcd   (built with -DRMAL_V3_CHECK) compares every animated
  *                                       track, bit for bit, with mcd_sample
