@@ -410,7 +410,8 @@ def cmd_decode(args: argparse.Namespace) -> int:
         raise CliError(f"the asset holds {len(clips)} clips: give --clip NAME, or a folder for -o")
     if folder and out.exists() and not out.is_dir():
         raise CliError(f"{printable(str(out))}: not a folder (the asset holds {len(clips)} clips)")
-    targets = [check_output(out / f"{c.name}.bvh" if folder else out, [args.asset], folder_made=folder) for c in clips]
+    targets = [check_output(out / f"{c.name}.bvh" if folder else out, [args.asset], folder_made=folder)
+               for c in clips]
     if folder:
         out.mkdir(parents=True, exist_ok=True)
     progress = _progress(len(clips), not args.quiet)
@@ -439,13 +440,13 @@ def _read_asset(path: str) -> bytes:
 def _open_asset(path: str) -> tuple[bytes, "Asset"]:
     """The asset's bytes, opened by the runtime; bytes it refuses end in one line naming the file
     and the runtime's reason (not the call that gave it)."""
-    from .runtime import Asset, Result, RuntimeResultError, validate
+    from .runtime import Asset, RuntimeResultError
 
     data = _read_asset(path)
-    status = validate(data)
-    if status != Result.OK:
-        raise CliError(f"{printable(path)}: {RuntimeResultError(int(status))}")
-    return data, Asset(data)
+    try:
+        return data, Asset(data)
+    except RuntimeResultError as exc:
+        raise CliError(f"{printable(path)}: {RuntimeResultError(int(exc.code))}") from None
 
 
 def _clip_by_name(asset: "Asset", path: str, name: str) -> "ClipInfo":

@@ -25,7 +25,8 @@ def _same_file(a: Path, b: Path) -> bool:
         return os.path.realpath(a) == os.path.realpath(b)
 
 
-def check_output(output: str | os.PathLike, inputs: Iterable[str | os.PathLike], folder_made: bool = False) -> Path:
+def check_output(output: str | os.PathLike, inputs: Iterable[str | os.PathLike],
+                 folder_made: bool = False) -> Path:
     """``output`` as a path, after refusing it when it is one of ``inputs`` (the same file by
     any name: a link, ``./x``, another spelling), an existing folder where a file is meant, or
     in a folder that is not there (checked before the work, not when the file is written at its
@@ -39,8 +40,9 @@ def check_output(output: str | os.PathLike, inputs: Iterable[str | os.PathLike],
         raise OutputError(f"{printable(str(out))}: is a folder; give a file name")
     folder = out.parent
     if not folder_made and not folder.is_dir():
-        what = "is not a folder" if folder.exists() else "does not exist"
-        raise OutputError(f"{printable(str(out))}: the folder {printable(str(folder))} {what}")
+        where = printable(str(folder))
+        raise OutputError(f"{printable(str(out))}: " + (f"{where} is not a folder" if folder.exists()
+                                                        else f"the folder {where} does not exist"))
     return out
 
 
