@@ -3,11 +3,11 @@
     python bench/rma_layout_curve.py                     # dev set, 1 and 0.02 cm, every choice
     python bench/rma_layout_curve.py --tolerances 1 --rounds 9
 
-The writer picks per track the group size with the fewest bytes among ``group_shifts`` (groups
-of 8, 16 or 32 keys by default) and puts keys on cells of ``key_grid`` frames (4 at 0.25 cm and
-up, else 1); docs/FORMAT.md, RMAL. A group costs a row (its first key whole, the records' bit
-offset and widths), so smaller groups take more bytes but a random access reads fewer records
-before an escaped one; coarser cells take fewer bits per key time but need more keys. This
+The writer codes each track's keys in blocks of ``block_keys`` keys (32 by default) and puts
+keys on cells of ``key_grid`` frames (4 at 0.25 cm and up, else 1); docs/FORMAT.md, RMAL
+version 3. A block costs a row (its first key whole, where its codes start, their Rice
+parameters), so smaller blocks take more bytes, but a random access decodes half a block on
+average; keys on a coarser grid of cells need more keys but have more regular gaps. This
 bench encodes the dev set as one library once per choice (``mocodec eval -O ...``, cached in
 ``bench/results/assets/``), then times every asset through the runtime in rounds, the subject
 order rotated every round (the driver of ``bench/engine_bench.py``, built like ACL), and
@@ -48,10 +48,10 @@ class Choice:
 
 
 def choices(tol: float) -> list[Choice]:
-    """The defaults, each single group size 4 ... 64 keys, and (where the default cells are 4
+    """The defaults, each other block size 4 ... 64 keys, and (where the default cells are 4
     frames) cells of 1, 2 and 8 frames."""
     out = [Choice("default", ())]
-    out += [Choice(f"groups of {1 << s}", (f"group_shifts={s}",)) for s in (2, 3, 4, 5, 6)]
+    out += [Choice(f"blocks of {n}", (f"block_keys={n}",)) for n in (4, 8, 16, 64)]
     if tol >= 0.25:
         out += [Choice(f"cells of {g}", (f"key_grid={g}",)) for g in (1, 2, 8)]
     return out

@@ -1,16 +1,19 @@
-"""The rma codec (RMAL version 2, sampled in place): a library in one RMAL section, the
+"""The rma codec (RMAL version 3, sampled in place): a library in one RMAL section, the
 tolerance promise on every frame, C vs Python reference agreement, sequential = random =
 backward access bit for bit, each clip's bytes where its clip info says, and bad bytes
-rejected at open or decoded finite. (Synthetic motion shapes run through it in test_spline.py.)"""
+rejected at open or decoded finite; assets of RMAL version 2 still read. (Synthetic motion
+shapes run through it in test_spline.py.)"""
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mocodec.codecs.rma_reference import decode_keys, decode_payload
 from mocodec.codecs.rma import section_prefix
+from mocodec.decode import skeleton_from_asset
 from mocodec.encode import EncodeError, encode_motions
 from mocodec.io import read_bvh
 from mocodec.kinematics import forward_kinematics
@@ -54,6 +57,19 @@ def _payloads(asset_bytes: bytes) -> list[tuple[int, bytes]]:
         start = sections[sec][2] + poff
         out.append((start, asset_bytes[start:start + psize]))
     return out
+
+
+RMAL2_GOLDEN = Path(__file__).resolve().parent / "golden" / "v2" / "rma_rmal2_library.mcd"
+
+
+@pytest.fixture(scope="module")
+def rmal2_golden() -> bytes:
+    """An rma asset written in RMAL version 2, before version 3 (tests/golden)."""
+    return RMAL2_GOLDEN.read_bytes()
+
+
+def _golden_skeleton(asset: Asset, clip: int):
+    return skeleton_from_asset(asset, asset.clips[clip].skeleton)[0]
 
 
 @pytest.fixture(scope="module")
@@ -136,22 +152,18 @@ def _descriptors(payload: bytes) -> list[int]:
     return out
 
 
-def _cell_shifts(payload: bytes) -> list[int]:
-    """Byte 1 of each descriptor: the first segment detached (bit 0), the cell shift (bits 1-2)."""
-    return [payload[d + 1] >> 1 & 3 for d in _descriptors(payload)]
-
-
 def test_c_runtime_and_python_reference_agree(library):
     motions, result = library
     _assert_c_matches_reference(result, motions)
 
 
 def test_dense_keys_decode_alike_in_c_and_python(sample_paths):
-    # Tight tolerances give dense keys (cells of one frame), outliers and short last groups.
+    # Tight tolerances give dense keys (gaps of one frame), wide differences and short last blocks.
     motions = [read_bvh(p) for p in sample_paths[:1]]
     result = _encode(motions, 0.05)
     (_, payload), = _payloads(result.asset)
-    assert 0 in _cell_shifts(payload)
+    _, tracks = decode_keys(payload)
+    assert any(np.any(np.diff(t["frames"]) == 1) for t in tracks)
     _assert_c_matches_reference(result, motions)
     assert _error_cm(Asset(result.asset), motions[0]).max() <= 0.05
 
@@ -204,17 +216,15 @@ def _rewrite(asset_bytes: bytes, at: int, new: bytes) -> bytes:
     return bytes(b)
 
 
-def test_inconsistent_payloads_are_rejected_at_open(library):
-    """One rule of the RMAL v2 payload broken at a time, the checksum rewritten."""
-    _, result = library
-    start, payload = _payloads(result.asset)[1]
+def _header_cases(payload: bytes) -> dict[str, tuple[int, bytes]]:
+    """Rules both versions share, one broken per case: (offset in the payload, new bytes)."""
     size, frames, nodes, tracks, consts = struct.unpack_from("<5I", payload)
     modes = PAYLOAD_HEADER
     descs = _descriptors(payload)
     rot = next(d for d in descs if payload[d] in (1, 2))  # a rotation track's descriptor
     trans = next(d for d in descs if payload[d] == 3)
     u32 = lambda v: struct.pack("<I", v)  # noqa: E731
-    cases = {
+    return {
         "size not the clip record's": (0, u32(size + 4)),
         "frame count not the clip's": (4, u32(frames + 1)),
         "node count not the skeleton's": (8, u32(nodes - 1)),
@@ -227,12 +237,9 @@ def test_inconsistent_payloads_are_rejected_at_open(library):
         "node mode bits 6-7": (modes, bytes([payload[modes] | 0x40])),
         "a rotation track of translation kind": (rot, bytes([3])),
         "track kind 5": (rot, bytes([5])),
-        "group shift 0 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7])),
-        "group shift 7 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7 | 7 << 3])),
-        "descriptor flag bit 6": (rot + 1, bytes([payload[rot + 1] | 0x40])),
         "offset bits 0": (rot + 2, bytes([0])),
         "offset bits 33": (rot + 2, bytes([33])),
-        "reserved descriptor byte": (rot + 3, bytes([1])),
+        "descriptor byte 3 (v3: reserved; v2: place bits) 1": (rot + 3, bytes([1])),
         "no keys": (rot + 4, u32(0)),
         "more keys than frames": (rot + 4, u32(frames + 1)),
         "one key in a clip of many frames": (rot + 4, u32(1)),
@@ -245,8 +252,67 @@ def test_inconsistent_payloads_are_rejected_at_open(library):
         "reference padding": (rot + 26, struct.pack("<H", 1)),
         "trailing zero bytes not zero": (size - 1, bytes([1])),
     }
-    # The track parts: bitmap, rank table, group table, records.
+
+
+def _assert_each_case_rejected(asset_bytes: bytes, start: int, payload: bytes, cases: dict) -> None:
+    for why, (at, new) in cases.items():
+        assert payload[at:at + len(new)] != new, why
+        with pytest.raises(RuntimeResultError):
+            Asset(_rewrite(asset_bytes, start + at, new))
+            pytest.fail(why)
+
+
+def _set_bit(payload: bytes, bit: int) -> tuple[int, bytes]:
+    """(offset, byte) that sets bit ``bit`` of the payload (a bit that is clear)."""
+    assert not payload[bit // 8] >> bit % 8 & 1
+    return bit // 8, bytes([payload[bit // 8] | 1 << bit % 8])
+
+
+def test_inconsistent_payloads_are_rejected_at_open(library):
+    """One rule of the RMAL v3 payload broken at a time, the checksum rewritten."""
+    _, result = library
+    start, payload = _payloads(result.asset)[1]
+    frames = struct.unpack_from("<I", payload, 4)[0]
+    rot = next(d for d in _descriptors(payload) if payload[d] in (1, 2))
+    cases = _header_cases(payload)
+    cases.update({
+        "block shift 0 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 1])),
+        "block shift 7 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 1 | 7 << 1])),
+        "descriptor flag bit 4": (rot + 1, bytes([payload[rot + 1] | 0x10])),
+    })
+    # The track parts: row table, Rice codes.
     _, decoded = decode_keys(payload)
+    t = max(decoded, key=lambda t: t["K"])
+    assert t["parts"]["rows"] >= 3
+    table, data = 8 * t["parts"]["table"], 8 * t["parts"]["data"]
+    fb = max(1, (frames - 1).bit_length())
+    row1 = table + t["parts"]["row_bits"]
+    desc = next(d for d in _descriptors(payload) if payload[d + 4:d + 8] == struct.pack("<I", t["K"]))
+    gap_param = next(b for b in range(5) if not payload[(row1 + fb + t["offset_bits"] + b) // 8] >> (
+        (row1 + fb + t["offset_bits"] + b) % 8) & 1)
+    cases.update({
+        "row 0's key not frame 0": _set_bit(payload, table),
+        "row 0's codes not at bit 0": _set_bit(payload, table + fb),
+        "a block's gap parameter changed": _set_bit(payload, row1 + fb + t["offset_bits"] + gap_param),
+        "data bytes one word more": (desc + 8, struct.pack("<I", t["data_bytes"] + 4)),
+        "a padding bit after the codes": _set_bit(payload, data + 8 * t["data_bytes"] - 1),
+    })
+    _assert_each_case_rejected(result.asset, start, payload, cases)
+
+
+def test_inconsistent_version_2_payloads_are_rejected_at_open(rmal2_golden):
+    """Assets written before version 3 are still read, and still checked in full: one rule of
+    the RMAL v2 payload broken at a time, the checksum rewritten."""
+    asset_bytes = rmal2_golden
+    start, payload = _payloads(asset_bytes)[0]
+    rot = next(d for d in _descriptors(payload) if payload[d] in (1, 2))
+    cases = _header_cases(payload)
+    cases.update({
+        "group shift 0 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7])),
+        "group shift 7 in a descriptor": (rot + 1, bytes([payload[rot + 1] & 7 | 7 << 3])),
+        "descriptor flag bit 6": (rot + 1, bytes([payload[rot + 1] | 0x40])),
+    })
+    _, decoded = decode_keys(payload, version=2)
     t = max(decoded, key=lambda t: t["K"])
     parts = t["parts"]
     word = int.from_bytes(payload[parts["bitmap"]:parts["bitmap"] + 8], "little")
@@ -258,16 +324,22 @@ def test_inconsistent_payloads_are_rejected_at_open(library):
         "one key cell more than keys": (parts["bitmap"], (word | 1 << spare).to_bytes(8, "little")),
         "the group table's first offset not 0": (parts["table"], bytes([payload[parts["table"]] | 1])),
         "the last row's widths not 0": (at, bytes([payload[at] | 1 << last_widths % 8])),
-        "data bytes one word more": (next(d for d in descs if payload[d + 4:d + 8] == struct.pack("<I", t["K"])) + 8,
-                                     u32(t["data_bytes"] + 4)),
     })
-    if t["K"] > 128:
-        cases["a rank entry off by one"] = (parts["rank"] + 1, bytes([payload[parts["rank"] + 1] ^ 0x01]))
-    for why, (at, new) in cases.items():
-        assert payload[at:at + len(new)] != new, why
-        with pytest.raises(RuntimeResultError):
-            Asset(_rewrite(result.asset, start + at, new))
-            pytest.fail(why)
+    _assert_each_case_rejected(asset_bytes, start, payload, cases)
+
+
+def test_version_2_assets_decode_as_the_reference_says(rmal2_golden):
+    """An asset written before version 3: the C runtime samples it as the Python reference of
+    version 2 decodes it, between frames too."""
+    asset = Asset(rmal2_golden)
+    for (_, payload), info in zip(_payloads(rmal2_golden), asset.clips):
+        sk = _golden_skeleton(asset, info.index)
+        x = np.linspace(0, info.frame_count - 1, 4 * info.frame_count - 3)
+        rot_py, trans_py, _ = decode_payload(payload, sk, x, version=2)
+        poses = asset.sample_times(info.index, (x / info.frame_rate).astype(np.float32)).astype(np.float64)
+        sign = np.sign(np.sum(poses[..., :4] * rot_py, axis=-1, keepdims=True))
+        assert np.abs(poses[..., :4] - sign * rot_py).max() <= 1e-5
+        assert np.abs(poses[..., 4:7] - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
 
 
 @pytest.fixture(scope="module")
@@ -348,19 +420,14 @@ def test_dev_set_meets_one_cm_on_every_frame_as_one_library(shared_cmu_dir):
 @pytest.mark.parametrize("grid", [1, 2, 4, 8])
 def test_key_grid_puts_keys_on_cell_starts_and_the_tolerance_holds(sample_paths, grid):
     """Most keys sit on the first frames of cells of ``grid`` frames (1 ... 8: 100 % ... 82 %
-    on 09_11), and a track whose descriptor stores no places in cells has every key on its
-    cells' first frames (the writer picks the cell size per track, so a track may take cells
-    that need places)."""
+    on 09_11)."""
     m = read_bvh(sample_paths[0])
     result = _encode([m], 1.0, key_grid=grid)
     (_, payload), = _payloads(result.asset)
     _, tracks = decode_keys(payload)
     kept = total = 0
     for t in tracks:
-        C = 1 << t["cell_shift"]
         inner = t["frames"][(t["frames"] > 0) & (t["frames"] < m.frame_count - 1)]
-        if t["in_cell_bits"] == 0:
-            assert np.all((inner - 1) % C == 0)
         kept += int(np.sum((inner - 1) % grid == 0))
         total += len(inner)
     assert kept >= 0.75 * total, (kept, total)
@@ -378,30 +445,61 @@ def test_key_grid_default_follows_the_tolerance():
             RMASettings(Tolerance(1.0), key_grid=bad)
 
 
-def test_reused_track_bytes_equal_fresh_ones():
+def _random_track(rng, kind: int, keys: int, step: float, frames: int):
+    from mocodec.codecs.rma_bitstream import KIND_TWIST, CurveTrack
+
+    f = np.unique(np.concatenate(([0, frames - 1], rng.integers(1, frames - 1, keys))))
+    d = 4 if kind == KIND_TWIST else 3
+    q = np.cumsum(rng.integers(-40, 41, (len(f), d)), axis=0)
+    return CurveTrack(kind, f, q, step, 0.01 if kind == KIND_TWIST else 0.0, np.array([10, -20, 300]),
+                      np.array([0, 32767, 0]) if kind == KIND_TWIST else None)
+
+
+@pytest.mark.parametrize("layout", ["groups", "blocks of 32", "blocks of 2"])
+def test_reused_track_bytes_equal_fresh_ones(layout):
     # A repair round writes its clip again with the previous round's tracks at hand: a track
     # that changed in anything (keys, values, step, twist axis) is written anew, so the payload
     # is the one written from scratch.
-    from mocodec.codecs.rma_bitstream import KIND_MRP, KIND_TWIST, CurveTrack, WrittenTracks, payload
+    from mocodec.codecs.rma_bitstream import KIND_MRP, KIND_TWIST, Blocks, CurveTrack, Groups, WrittenTracks, payload
 
     rng = np.random.default_rng(5)
     frames = 97
-
-    def track(kind: int, keys: int, step: float) -> CurveTrack:
-        f = np.unique(np.concatenate(([0, frames - 1], rng.integers(1, frames - 1, keys))))
-        d = 4 if kind == KIND_TWIST else 3
-        q = np.cumsum(rng.integers(-40, 41, (len(f), d)), axis=0)
-        return CurveTrack(kind, f, q, step, 0.01 if kind == KIND_TWIST else 0.0, np.array([10, -20, 300]),
-                          np.array([0, 32767, 0]) if kind == KIND_TWIST else None)
-
-    tracks = [track(KIND_MRP, 30, 1e-3), track(KIND_TWIST, 12, 2e-3), track(KIND_MRP, 50, 5e-4)]
+    how = {"groups": Groups(), "blocks of 32": Blocks(5), "blocks of 2": Blocks(1)}[layout]
+    tracks = [_random_track(rng, KIND_MRP, 30, 1e-3, frames), _random_track(rng, KIND_TWIST, 12, 2e-3, frames),
+              _random_track(rng, KIND_MRP, 50, 5e-4, frames)]
     modes = [(2, 0, 0), (2, 0, 0), (2, 0, 0)]
     written = WrittenTracks()
-    assert payload(frames, modes, [], tracks, written=written) == payload(frames, modes, [], tracks)
+    assert payload(frames, modes, [], tracks, how, written) == payload(frames, modes, [], tracks, how)
     changed = [CurveTrack(t.kind, t.frames, t.q.copy(), t.step, t.angle_step, t.ref_codes, t.axis_codes)
                for t in tracks]
     changed[0].step = 2e-3
     changed[1].axis_codes = np.array([0, 0, 32767])
     changed[2].q[7, 1] += 1
-    assert payload(frames, modes, [], changed, written=written) == payload(frames, modes, [], changed)
-    assert payload(frames, modes, [], changed, written=written) != payload(frames, modes, [], tracks)
+    assert payload(frames, modes, [], changed, how, written) == payload(frames, modes, [], changed, how)
+    assert payload(frames, modes, [], changed, how, written) != payload(frames, modes, [], tracks, how)
+
+
+@pytest.mark.parametrize("shift", [1, 2, 3, 4, 5, 6])
+def test_block_writer_and_reference_agree_on_every_key(shift):
+    """RMAL v3 as written is what the format document says (the reference decoder): every key's
+    frame and lattice integers, for every block size, with escaped codes (a jump of 2**29 steps
+    among steps of tens), a gap of most of the clip, a last block of one key and a one-frame clip."""
+    from mocodec.codecs.rma_bitstream import KIND_MRP, KIND_SCALE, KIND_TWIST, Blocks, CurveTrack, payload
+    rng = np.random.default_rng(shift)
+    frames = 3000
+    jumpy = _random_track(rng, KIND_MRP, 200, 1e-3, frames)
+    jumpy.q[len(jumpy.q) // 2:, 1] += 1 << 29
+    sparse = CurveTrack(KIND_SCALE, np.array([0, 1, frames - 1]), np.array([[5, 6, 7], [8, 9, 10], [-3, 0, 2]]), 1e-2)
+    block = 1 << shift
+    exact = _random_track(rng, KIND_TWIST, 4 * block, 1e-3, frames)  # the last block one key long
+    exact.frames, exact.q = exact.frames[:block + 1], exact.q[:block + 1]
+    exact.frames[-1] = frames - 1
+    tracks = [jumpy, sparse, exact]
+    data = payload(frames, [(2, 0, 0), (0, 0, 2), (2, 0, 0)], [], tracks, Blocks(shift))
+    _, decoded = decode_keys(data)
+    for t, d in zip(tracks, decoded):
+        assert d["block_shift"] == shift
+        assert np.array_equal(d["frames"], t.frames) and np.array_equal(d["q"], t.q)
+    one = CurveTrack(KIND_MRP, np.array([0]), np.array([[1, -2, 3]]), 1e-3, 0.0, np.array([1, 2, 3]))
+    _, (d,) = decode_keys(payload(1, [(2, 0, 0)], [], [one], Blocks(shift)))
+    assert np.array_equal(d["frames"], [0]) and np.array_equal(d["q"], one.q)

@@ -597,7 +597,7 @@ def _add_encode_arguments(p: argparse.ArgumentParser) -> None:
                         "spacing when regular, subdivided up to 24 Hz, else 60); errors are measured "
                         "against the source's own interpolation at those times")
     p.add_argument("-O", "--option", action="append", metavar="KEY=VALUE",
-                   help="a codec setting, e.g. -O key_grid=1 (codec rma) or -O block_shift=6 (codec "
+                   help="a codec setting, e.g. -O block_keys=8 (codec rma) or -O block_shift=6 (codec "
                         "spline); values are JSON; an unknown setting is named with the codec's list")
     p.add_argument("--contacts", action=argparse.BooleanOptionalAction, default=False,
                    help="store foot contact trajectories that the runtime restores by IK "

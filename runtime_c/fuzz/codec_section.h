@@ -11,7 +11,8 @@
  * the other targets' business (an asset written out, below, carries its right CRC).
  *
  * Input: byte 0 picks the template (modulo their count, in file-name order), the rest is the
- * section. The payload ranges follow the section's own layout as far as it states one (an RMAL
+ * section, read as the version of the template's section (rma's templates hold RMAL version 2
+ * or 3: the codec's reader of that version checks and sizes it). The payload ranges follow the section's own layout as far as it states one (an RMAL
  * payload starts with its size; an RMAP section says where its clip payloads start); otherwise
  * each payload keeps the template's size. The last payload always runs to the section's end,
  * so inserting or removing bytes keeps the framing. A clip record's scratch_bytes is what the
@@ -58,6 +59,7 @@ typedef struct fuzz_template {
     uint8_t* data;
     size_t size;
     uint32_t section; /* index of the codec's section in the table */
+    const mcd_codec_ops* ops; /* the codec's reader of that section's version */
 } fuzz_template;
 
 static fuzz_template g_templates[MAX_TEMPLATES];
@@ -114,8 +116,8 @@ static size_t payloads_start(const uint8_t* sec, size_t n) {
  * the codec refuses the payload (the record keeps the template's value: validation refuses it). What
  * mcd_offline_clip_scratch does, without checking the template's skeleton again and the section
  * once per clip: a third of the time per input went there. */
-static int clip_scratch(const uint8_t* section, size_t n, const uint8_t* r, const uint8_t* skeleton, uint32_t* need) {
-    const mcd_codec_ops* ops = mcd_find_codec(FUZZ_CODEC);
+static int clip_scratch(const mcd_codec_ops* ops, const uint8_t* section, size_t n, const uint8_t* r,
+                        const uint8_t* skeleton, uint32_t* need) {
     mcd_clip_view v;
     size_t size;
     memset(&v, 0, sizeof v);
@@ -144,7 +146,7 @@ static size_t splice(const fuzz_template* t, const uint8_t* sec, size_t n, uint8
     uint32_t count = mcd_rd_u32(in + 24), i, clip_section = 0, order[MAX_SECTION_CLIPS];
     uint32_t clip_count, codec_clips = 0, skel_index[16], skel_count = 0;
     size_t pos = align16(MCD_HEADER_SIZE + (size_t)count * MCD_SECTION_ENTRY_SIZE), next_start;
-    const mcd_codec_ops* ops = mcd_find_codec(FUZZ_CODEC);
+    const mcd_codec_ops* ops = t->ops;
     int section_ok;
     uint8_t* clips;
     memcpy(out, in, pos);
@@ -199,7 +201,7 @@ static size_t splice(const fuzz_template* t, const uint8_t* sec, size_t n, uint8
         }
         if (skel < skel_count && section_ok) {
             uint32_t need;
-            if (clip_scratch(section, n, r, out + mcd_rd_u32(entry(out, skel_index[skel]) + 8), &need))
+            if (clip_scratch(ops, section, n, r, out + mcd_rd_u32(entry(out, skel_index[skel]) + 8), &need))
                 wr_u32(r + 40, need);
         }
     }
@@ -250,6 +252,8 @@ static void load_templates(const char* dir) {
             continue;
         }
         t->section = i;
+        t->ops = mcd_find_codec_version(FUZZ_CODEC, mcd_rd_u32(entry(t->data, i) + 4));
+        if (!t->ops) fail("a template's section version has no reader", path); /* it validated */
         memcpy(t->name, e->d_name, len + 1);
         ++g_template_count;
     }

@@ -1,892 +1,392 @@
 /* Codec `rma`: per-track Catmull-Rom keys, sampled in place from the asset's bytes
- * (docs/FORMAT.md, RMAL version 2).
+ * (docs/FORMAT.md, RMAL version 3; version 2 is rmal_v2.c, the payload around the tracks and
+ * the window's curve rmal_payload.c).
  *
- * Every part of a track is read directly. Key times: cells of frames in unary (a one per key,
- * a zero closing each cell) with a rank entry every 64 cells, so the key at or before a frame
- * is a rank entry and a popcount or two away and its neighbours the next ones. Key values: groups of G keys; a group's row holds its first key whole (the
- * anchor), its records' bit offset and widths, and each other key is one fixed-width record,
- * its residual from the chord between the group's anchor and the next, so any key's value is
- * one read (an escaped residual, rare, a short walk to its outlier). A random access reads the
- * four keys around x; sequential playback keeps them in the scratch and reads one key per key
- * interval, and a step forward of up to three keys (a game tick) reads just those keys. */
+ * A track's keys come in blocks of 2^b. A block's row, at a fixed bit stride, holds its first
+ * key whole (frame and lattice integers), where its codes start and their Rice parameters;
+ * every later key is its frame gap and its differences from the key before, Rice coded (one
+ * 64-bit load and a count of trailing zeros a code). A random access searches the rows by
+ * frame and decodes on from its block's first key to the keys around x; playback keeps a
+ * reader per track and decodes one key per key interval, a step forward of a few keys (a game
+ * tick) just those keys. */
 #include <string.h>
 
-#include "internal.h"
+#include "rmal_payload.h"
 
-#define SECTION_HEADER 16u
-#define PAYLOAD_HEADER 32u
-#define MAX_GROUP_SHIFT 6u
-#define RANK_SHIFT 6u /* a rank entry every 64 cells */
-#define WIDTH_BITS 4u /* a record field's width, 0 ... 15 */
-#define MAX_Q 0x40000000LL /* |q| < 2^30: exact in binary64 */
+#define MAX_BLOCK_SHIFT 6u
+#define K_BITS 5u       /* a Rice parameter in a row */
+#define RICE_CAP 16u    /* 16 zeros: an escape, the value follows in 32 raw bits */
+#define RICE_RAW 32u
+/* Bit positions in a track's data area are 32-bit (a row's offset is at most 32 bits), and a
+ * code may start at any of them. */
+#define MAX_DATA_BYTES 0x1FFFFFF0u
+#define MAX_ADVANCE 3u  /* keys a step forward reads one by one before a fresh locate */
+#define FAR_FRAMES 8.0f /* frames past the window's last key from which a step forward locates */
 
-/* Rare paths kept out of line, so the hot loops around them keep their registers; the key
- * decoder inlined into locate, where a random access calls it four times a track, and kept
- * out of line for the callers that read one key at a time. */
-#if defined(__GNUC__) || defined(__clang__)
-#define RARE_PATH __attribute__((noinline, cold))
-#define HOT_INLINE __attribute__((always_inline)) inline
-#define OUT_OF_LINE __attribute__((noinline))
-#else
-#define RARE_PATH
-#define HOT_INLINE
-#define OUT_OF_LINE
-#endif
-
-enum { KIND_MRP = 1, KIND_TWIST = 2, KIND_TRANSLATION = 3, KIND_SCALE = 4 };
-enum { MODE_REST = 0, MODE_CONSTANT = 1, MODE_ANIMATED = 2 };
-
-static uint32_t desc_size(uint32_t kind) {
-    return kind == KIND_MRP ? 28u : kind == KIND_TWIST ? 40u : (kind == KIND_TRANSLATION || kind == KIND_SCALE) ? 20u : 0u;
-}
-
-static uint32_t kind_dims(uint32_t kind) {
-    return kind == KIND_TWIST ? 4u : 3u;
-}
-
-/* Bits that hold every value 0 ... n (at least 1). */
-static uint32_t bits_for(uint32_t n) {
-    uint32_t b = 1;
-    while (b < 32u && (n >> b)) ++b;
-    return b;
-}
-
-/* ---------------------------------------------------------------- payload layout */
-typedef struct header {
-    uint32_t size, frames, nodes, tracks, constants;
-    const uint8_t *modes, *consts, *descs;
-} header;
-
-/* Everything about one track that its descriptor and the clip's frame count give. Offsets
- * are bytes from the start of the payload. */
+/* Everything about one track that its descriptor and the clip's frame count give. Offsets are
+ * bytes from the start of the payload. */
 typedef struct track_layout {
-    uint8_t kind, dims, split, cell_shift, group_shift, offset_bits, rank_bits, in_cell_bits;
-    uint8_t abits[4], anchor_bits, reserved[3]; /* anchor_bits: the sum of abits */
-    uint32_t keys, frames;
-    uint32_t cells, words;          /* key cells (the last is the last frame's), unary words */
-    uint32_t rows, row_bits;        /* group table: one row per group, and one for the last anchor */
-    uint32_t data_bytes;
+    uint32_t table, data;    /* the row table, the data area */
+    uint32_t keys, rows, row_bits, frames;
+    uint8_t dims, shift, fbits, obits; /* components, block shift, bits of a row's frame and offset */
+    uint8_t abits[4];
     float step[4];
-    uint32_t bitmap, rank, places, table, data, end;
 } track_layout;
 
-static mcd_result parse_header(const uint8_t* p, size_t avail, header* H) {
-    uint32_t i;
-    /* Defined on every return: prepare reads validated bytes and ignores the result, which gcc
-     * -O3 cannot see (maybe-uninitialized). */
-    memset(H, 0, sizeof *H);
-    if (avail < PAYLOAD_HEADER) return MCD_ERROR_MALFORMED;
-    H->size = mcd_rd_u32(p);
-    H->frames = mcd_rd_u32(p + 4);
-    H->nodes = mcd_rd_u32(p + 8);
-    H->tracks = mcd_rd_u32(p + 12);
-    H->constants = mcd_rd_u32(p + 16);
-    if (H->size < PAYLOAD_HEADER || H->size > avail || (H->size & 3u)) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(p + 20) || mcd_rd_u32(p + 24) || mcd_rd_u32(p + 28)) return MCD_ERROR_MALFORMED;
-    if (H->frames == 0 || H->nodes == 0 || H->nodes > MCD_MAX_NODES) return MCD_ERROR_MALFORMED;
-    if (H->tracks > 3u * H->nodes || H->constants > 10u * H->nodes) return MCD_ERROR_MALFORMED;
-    if ((uint64_t)PAYLOAD_HEADER + mcd_align4(H->nodes) + 4u * (uint64_t)H->constants > H->size) return MCD_ERROR_MALFORMED;
-    H->modes = p + PAYLOAD_HEADER;
-    H->consts = H->modes + mcd_align4(H->nodes);
-    H->descs = H->consts + 4u * (size_t)H->constants;
-    for (i = H->nodes; i < mcd_align4(H->nodes); ++i)
-        if (H->modes[i]) return MCD_ERROR_MALFORMED;
-    return MCD_OK;
-}
+/* A decoded key: its frame and lattice integers (components past the track's: 0). */
+typedef struct key {
+    int64_t q[4];
+    uint32_t frame;
+} key;
 
-/* Bytes of n fields of `bits` each, padded to 4 bytes. */
-static uint64_t packed_bytes(uint64_t n, uint64_t bits) {
-    return 4u * ((n * bits + 31u) / 32u);
-}
+/* Where a track is read: the codes of the key after the current one start at `bit` of the
+ * data area; the current key's block e and rank r, the block's key count n; per stream (the
+ * gaps, then each component) the block's Rice parameter. */
+typedef struct reader {
+    uint32_t bit, e, r, n;
+    uint8_t k[5];
+    uint8_t at_end; /* playback: the window's slot 2 is the last key */
+    uint8_t pad[2];
+} reader;
 
-/* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`;
- * checks what the descriptor alone shows and that the parts fit before `limit`. */
-static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit, track_layout* t) {
-    uint32_t c;
-    uint64_t end, row;
-    t->kind = d[0];
-    if (!desc_size(t->kind)) return MCD_ERROR_MALFORMED;
-    t->dims = (uint8_t)kind_dims(t->kind);
-    /* Byte 1: the first segment detached (bit 0), key cells of 2^(bits 1-2) frames, groups of
-     * 2^(bits 3-5) keys. */
-    t->split = d[1] & 1u;
-    t->cell_shift = (d[1] >> 1) & 3u;
-    t->group_shift = (d[1] >> 3) & 7u;
-    t->offset_bits = d[2];
-    t->in_cell_bits = d[3];
-    t->keys = mcd_rd_u32(d + 4);
-    t->data_bytes = mcd_rd_u32(d + 8);
-    t->frames = frames;
-    if ((d[1] >> 6) || t->group_shift < 1 || t->group_shift > MAX_GROUP_SHIFT) return MCD_ERROR_MALFORMED;
-    /* Byte 3: bits of each key's place in its cell (0, or the cell shift when some key is
-     * off its cell's first frame). */
-    if (t->in_cell_bits && t->in_cell_bits != t->cell_shift) return MCD_ERROR_MALFORMED;
-    if (t->offset_bits < 1 || t->offset_bits > 32) return MCD_ERROR_MALFORMED;
-    if (t->keys < 1 || t->keys > frames || (frames > 1u && t->keys < 2u)) return MCD_ERROR_MALFORMED;
-    if (t->data_bytes & 3u) return MCD_ERROR_MALFORMED;
-    t->step[0] = t->step[1] = t->step[2] = t->step[3] = mcd_rd_f32(d + 12);
-    if (t->kind == KIND_TWIST) t->step[0] = mcd_rd_f32(d + 36);
-    /* Cells: frame 0, frames 1 ... F - 2 in cells of 2^s, the last frame. */
-    t->cells = frames > 1u ? ((frames - 2u + (1u << t->cell_shift) - 1u) >> t->cell_shift) + 2u : 1u;
-    t->words = (uint32_t)(((uint64_t)t->keys + t->cells + 63u) / 64u);
-    t->rank_bits = (uint8_t)bits_for(t->keys);
-    t->rows = ((t->keys - 1u + (1u << t->group_shift) - 1u) >> t->group_shift) + 1u;
-    row = t->offset_bits + (uint64_t)WIDTH_BITS * t->dims;
-    t->anchor_bits = 0;
-    t->reserved[0] = t->reserved[1] = t->reserved[2] = 0;
-    for (c = 0; c < 4; ++c) {
-        t->abits[c] = d[16 + c];
-        if (c < t->dims) {
-            if (t->abits[c] < 1 || t->abits[c] > 31) return MCD_ERROR_MALFORMED;
-            if (!mcd_in_bounds(t->step[c]) || t->step[c] < 0.0f) return MCD_ERROR_MALFORMED;
-            row += t->abits[c];
-            t->anchor_bits = (uint8_t)(t->anchor_bits + t->abits[c]);
-        } else if (t->abits[c]) {
-            return MCD_ERROR_MALFORMED;
-        }
-    }
-    t->row_bits = (uint32_t)row;
-    t->bitmap = at;
-    end = at + 8u * (uint64_t)t->words;
-    t->rank = (uint32_t)(end > limit ? limit : end);
-    end += packed_bytes((t->cells + 63u) / 64u, t->rank_bits);
-    t->places = (uint32_t)(end > limit ? limit : end);
-    end += packed_bytes(t->in_cell_bits ? t->keys : 0u, t->in_cell_bits);
-    t->table = (uint32_t)(end > limit ? limit : end);
-    end += packed_bytes(t->rows, t->row_bits);
-    t->data = (uint32_t)(end > limit ? limit : end);
-    end += t->data_bytes;
-    if (end > limit) return MCD_ERROR_MALFORMED;
-    t->end = (uint32_t)end;
-    return MCD_OK;
-}
-
-/* ---------------------------------------------------------------- key times */
-static uint64_t bitmap_word(const uint8_t* p, const track_layout* t, uint32_t w) {
-    return mcd_rd_u64(p + t->bitmap + 8u * (size_t)w);
-}
-
-/* The cell of frame f (0 ... F - 1), and the frame a key in cell c sits on. */
-static uint32_t cell_of(const track_layout* t, uint32_t f) {
-    if (f == 0) return 0;
-    if (f >= t->frames - 1u) return t->cells - 1u;
-    return ((f - 1u) >> t->cell_shift) + 1u;
-}
-
-static uint32_t cell_frame(const track_layout* t, uint32_t c) {
-    /* Without branches (random access meets every case): the last cell's formula start is at or
-     * past the last frame, every other cell's before it. */
-    uint32_t f = 1u + ((c - 1u) << t->cell_shift);
-    f = f < t->frames - 1u ? f : t->frames - 1u;
-    return c ? f : 0u;
-}
-
-/* The frame of key k, whose cell is c. */
-static uint32_t key_frame(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t c) {
-    uint32_t f = cell_frame(t, c);
-    return t->in_cell_bits ? f + mcd_read_bits(p + t->places, (uint64_t)k * t->in_cell_bits, t->in_cell_bits) : f;
-}
-
-/* The positions of the set bits of a nibble, two bits each from the lowest. */
-static const uint8_t nibble_select[16] = {0x00, 0x00, 0x01, 0x04, 0x02, 0x08, 0x09, 0x24,
-                                          0x03, 0x0C, 0x0D, 0x34, 0x0E, 0x38, 0x39, 0xE4};
-
-/* The r-th set bit (from 0) of x, which has more than r. Without data-dependent branches (a
- * random access's select is unpredictable): the byte from running counts of every byte at
- * once, then the nibble and a table. */
-static uint32_t select_in_word(uint64_t x, uint32_t r) {
-    const uint64_t ones = 0x0101010101010101u, highs = 0x8080808080808080u;
-    uint64_t s = x - ((x >> 1) & 0x5555555555555555u), at_most;
-    uint32_t byte, b, low, nib;
-    s = (s & 0x3333333333333333u) + ((s >> 2) & 0x3333333333333333u);
-    s = ((s + (s >> 4)) & 0x0F0F0F0F0F0F0F0Fu) * ones; /* byte k: the set bits of bytes 0 ... k */
-    at_most = ((((uint64_t)r * ones) | highs) - s) & highs; /* bytes whose count is at most r */
-    byte = mcd_popcount(at_most);                           /* counts rise: the first byte past r */
-    r -= (uint32_t)((s << 8) >> (8u * byte)) & 0xFFu;      /* the bytes below it */
-    b = (uint32_t)(x >> (8u * byte)) & 0xFFu;
-    low = mcd_popcount(b & 15u);
-    nib = r >= low ? 4u : 0u;
-    r -= r >= low ? low : 0u;
-    return 8u * byte + nib + ((nibble_select[(b >> nib) & 15u] >> (2u * r)) & 3u);
-}
-
-/* The bit of the zero that closes cell c: from the start of c's 64-cell block (its cells and
- * keys before it), the (c mod 64)-th zero on. The word bound only matters for bytes never
- * validated. */
-static uint32_t cell_end(const uint8_t* p, const track_layout* t, uint32_t c) {
-    uint32_t r = c & 63u, n, w;
-    uint32_t pos = (c & ~63u) + mcd_read_bits(p + t->rank, (uint64_t)(c >> RANK_SHIFT) * t->rank_bits, t->rank_bits);
-    uint64_t x;
-    w = pos >> 6;
-    if (w >= t->words) return (t->words << 6) - 1u;
-    x = ~bitmap_word(p, t, w) & (~(uint64_t)0 << (pos & 63u));
-    n = mcd_popcount(x);
-    while (n <= r && w + 1u < t->words) {
-        r -= n;
-        x = ~bitmap_word(p, t, ++w);
-        n = mcd_popcount(x);
-    }
-    return n > r ? (w << 6) + select_in_word(x, r) : (t->words << 6) - 1u;
-}
-
-/* The last one below bit u (key 0's is bit 0), the first one above bit u (the last key's is
- * above every other). */
-static uint32_t one_before(const uint8_t* p, const track_layout* t, uint32_t u) {
-    uint32_t w = u >> 6;
-    uint64_t m = bitmap_word(p, t, w) & (((uint64_t)1 << (u & 63u)) - 1u);
-    while (!m && w > 0) m = bitmap_word(p, t, --w);
-    return m ? (w << 6) + mcd_highest_bit(m) : 0u;
-}
-
-static uint32_t one_after(const uint8_t* p, const track_layout* t, uint32_t u) {
-    uint32_t w = u >> 6;
-    uint64_t m = (u & 63u) == 63u ? 0u : bitmap_word(p, t, w) & (~(uint64_t)0 << ((u & 63u) + 1u));
-    while (!m && w + 1u < t->words) m = bitmap_word(p, t, ++w);
-    return m ? (w << 6) + mcd_lowest_bit(m) : u;
-}
-
-/* 64 unary bits from bit `lo` in one load (the ones around a random access are usually near
- * each other), with the bitmap's end: bits past it are masked off. */
-typedef struct bit_window {
-    uint64_t w;
-    uint32_t lo, end;
-} bit_window;
-
-static bit_window window_at(const uint8_t* p, const track_layout* t, uint32_t around) {
-    bit_window b;
-    uint32_t byte = around > 28u ? (around - 28u) >> 3 : 0u;
-    b.lo = byte << 3;
-    b.end = t->words << 6;
-    b.w = mcd_rd_u64(p + t->bitmap + byte); /* within the payload: its last 8 bytes are padding */
-    if (b.end - b.lo < 64u) b.w &= ((uint64_t)1 << (b.end - b.lo)) - 1u;
-    return b;
-}
-
-/* one_before and one_after, from the window when it holds the answer. */
-static uint32_t prev_one(const uint8_t* p, const track_layout* t, const bit_window* b, uint32_t u) {
-    uint32_t n = u - b->lo;
-    if (u > b->lo && n < 64u) {
-        uint64_t m = b->w & (((uint64_t)1 << n) - 1u);
-        if (m) return b->lo + mcd_highest_bit(m);
-        if (b->lo == 0) return 0;
-    }
-    return one_before(p, t, u);
-}
-
-static uint32_t next_one(const uint8_t* p, const track_layout* t, const bit_window* b, uint32_t u) {
-    uint32_t n = u - b->lo + 1u;
-    if (u >= b->lo && n < 64u) {
-        uint64_t m = b->w & (~(uint64_t)0 << n);
-        if (m) return b->lo + mcd_lowest_bit(m);
-        if (b->lo + 64u >= b->end) return u;
-    }
-    return one_after(p, t, u);
-}
-
-/* The frame of key k, whose one is at bit u (its cell is u - k). */
-static uint32_t key_frame_at(const uint8_t* p, const track_layout* t, uint32_t k, uint32_t u) {
-    return key_frame(p, t, k, u - k);
-}
-
-/* ---------------------------------------------------------------- key values */
-/* One group as its row and the next row's anchor give it. */
-typedef struct group_view {
-    uint32_t row;         /* the row (group) number; UINT32_MAX: none loaded */
-    uint32_t bit;         /* bit offset of its records in the data area */
-    uint32_t span;        /* keys from its anchor to the next anchor (0 for the last row) */
-    uint32_t rec_bits;    /* bits of one record */
-    uint8_t width[4], shift[4];
-    int32_t a0[4], d[4];  /* its anchor, and the next one's difference from it */
-} group_view;
-
-/* The anchor of row e (the key e * G, or the last key for the last row). */
-static void row_anchor(const uint8_t* p, const track_layout* t, uint32_t e, int32_t a[4]) {
-    uint64_t bit = (uint64_t)e * t->row_bits + t->offset_bits + WIDTH_BITS * t->dims;
-    uint32_t c;
-    a[3] = 0;
-    if (t->anchor_bits <= 57u) { /* one load for all components */
-        uint64_t w = mcd_rd_u64(p + t->table + (size_t)(bit >> 3)) >> (bit & 7u);
-        for (c = 0; c < t->dims; ++c) {
-            uint32_t n = t->abits[c];
-            uint64_t sign = (uint64_t)1 << (n - 1u), u = w & ((sign << 1) - 1u);
-            a[c] = (int32_t)((int64_t)(u ^ sign) - (int64_t)sign);
-            w >>= n;
-        }
-        return;
-    }
-    for (c = 0; c < t->dims; ++c) {
-        a[c] = mcd_read_signed(p + t->table, bit, t->abits[c]);
-        bit += t->abits[c];
-    }
-}
-
-static void group_load(const uint8_t* p, const track_layout* t, uint32_t e, group_view* g) {
-    const uint8_t* table = p + t->table;
-    uint64_t bit = (uint64_t)e * t->row_bits;
-    uint64_t head = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* offset and widths: <= 48 bits */
-    uint32_t c, at = 0, widths, first = e << t->group_shift;
-    g->row = e;
-    g->bit = (uint32_t)(head & ((((uint64_t)1) << t->offset_bits) - 1u));
-    widths = (uint32_t)(head >> t->offset_bits) & ((1u << (WIDTH_BITS * t->dims)) - 1u); /* 0 past the track's */
-    for (c = 0; c < 4u; ++c) {
-        uint32_t w = (widths >> (WIDTH_BITS * c)) & 15u;
-        g->width[c] = (uint8_t)w;
-        g->shift[c] = (uint8_t)at;
-        at += w;
-    }
-    g->rec_bits = at;
-    row_anchor(p, t, e, g->a0);
-    if (e + 1u < t->rows) {
-        int32_t a1[4];
-        g->span = t->keys - 1u - first < (1u << t->group_shift) ? t->keys - 1u - first : 1u << t->group_shift;
-        row_anchor(p, t, e + 1u, a1);
-        for (c = 0; c < 4u; ++c) g->d[c] = a1[c] - g->a0[c]; /* |a| < 2^30 */
-    } else {
-        g->span = 0;
-        memset(g->d, 0, sizeof g->d);
-    }
-}
-
-/* floor(v / 2^s) for any sign (a right shift of a negative number is implementation-defined
- * in C): the biased value shifted. |v| < 2^37. */
-static int64_t floor_shift(int64_t v, uint32_t s) {
-    const int64_t bias = (int64_t)1 << 40;
-    /* The compiler folds the test: every common one shifts arithmetically, which is floor. */
-    return ((int64_t)-1 >> 1) == -1 ? v >> s : (int64_t)((uint64_t)(v + (bias << s)) >> s) - bias;
-}
-
-/* floor(v / n), n > 0 (C's division truncates). */
-static int64_t floor_div(int64_t v, int64_t n) {
-    return v >= 0 ? v / n : -((-v + n - 1) / n);
-}
-
-/* A record's fields: bits [bit, bit + rec_bits) of the data area (rec_bits <= 60). */
-static uint64_t record_word(const uint8_t* data, const group_view* g, uint32_t bit) {
-    uint64_t w = mcd_rd_u64(data + (bit >> 3)) >> (bit & 7u);
-    if (g->rec_bits > 57u) w |= mcd_rd_u64(data + (bit >> 3) + 7u) << (56u - (bit & 7u)); /* wide records */
-    return w;
-}
-
-/* Record i's component c when its field holds the escape code: the outlier, stored whole
- * after the group's records in record and component order, so the escapes before it count. */
-RARE_PATH static int32_t outlier(const uint8_t* data, const track_layout* t, const group_view* g, uint32_t i, uint32_t c) {
-    uint32_t at = g->bit + (g->span - 1u) * g->rec_bits, j, k, bit = g->bit, mask[4], code[4];
-    uint64_t top = 0, low = 0, below;
-    for (k = 0; k < 4u; ++k) {
-        mask[k] = ((uint32_t)1 << g->width[k]) - 1u;
-        code[k] = g->width[k] ? (mask[k] + 1u) >> 1 : UINT32_MAX; /* width 0: no escape */
-        if (g->width[k]) {
-            top |= (uint64_t)1 << (g->shift[k] + g->width[k] - 1u);
-            low |= (uint64_t)1 << g->shift[k];
-        }
-    }
-    below = top - low; /* each field's bits under its top bit */
-    for (j = 1; j <= i; ++j, bit += g->rec_bits) {
-        uint64_t w = record_word(data, g, bit), x = w ^ top;
-        uint32_t n;
-        /* Most records escape nothing: a field is the escape code (its top bit alone) where x
-         * is zero, i.e. where the top bit of ((x & below) + below) | x is clear (no carry
-         * leaves a field). */
-        if (j < i && !(~(((x & below) + below) | x) & top)) continue;
-        n = j < i ? t->dims : c;
-        for (k = 0; k < n; ++k) {
-            at += ((uint32_t)w & mask[k]) == code[k] ? t->abits[k] : 0u;
-            w >>= g->width[k];
-        }
-    }
-    return mcd_read_signed(data, at, t->abits[c]);
-}
-
-/* Key j's lattice integers (components past the track's: 0), as wide as any bytes make them:
- * in a validated payload every one is within +-2^30 (check_track reads them all). `g` caches
- * the last group read; row e's anchor is also the end of group e - 1. */
-static HOT_INLINE void key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
-    uint32_t e = j >> t->group_shift, i = j & ((1u << t->group_shift) - 1u), c, full;
-    uint64_t w;
-    if (i == 0) { /* an anchor */
-        if (g->row == e) {
-            for (c = 0; c < 4u; ++c) q[c] = g->a0[c];
-        } else if (g->row != UINT32_MAX && g->row + 1u == e) {
-            for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
-        } else {
-            int32_t a[4];
-            row_anchor(p, t, e, a);
-            for (c = 0; c < 4u; ++c) q[c] = a[c];
-        }
-        return;
-    }
-    if (g->row != e) group_load(p, t, e, g);
-    if (i >= g->span) { /* the track's last key: the next anchor */
-        for (c = 0; c < 4u; ++c) q[c] = (int64_t)g->a0[c] + g->d[c];
-        return;
-    }
-    w = record_word(p + t->data, g, g->bit + (i - 1u) * g->rec_bits);
-    full = g->span == (1u << t->group_shift);
-    q[3] = 0;
-    for (c = 0; c < t->dims; ++c) {
-        uint32_t wc = g->width[c], mask = ((uint32_t)1 << wc) - 1u, sign = (mask + 1u) >> 1, u = (uint32_t)w & mask;
-        int64_t v;
-        w >>= wc;
-        if (u == sign && wc) { /* the escape code (never at width 0): the value is an outlier */
-            q[c] = outlier(p + t->data, t, g, i, c);
-            continue;
-        }
-        v = (int64_t)g->d[c] * (int64_t)i;
-        q[c] = g->a0[c] + (int64_t)(u ^ sign) - (int64_t)sign +
-               (full ? floor_shift(v, t->group_shift) : floor_div(v, (int64_t)g->span));
-    }
-}
-
-/* key_value out of line, for the callers that read one key at a time (a step forward, the
- * validation): inlined there it only grows their loops. */
-static OUT_OF_LINE void one_key_value(const uint8_t* p, const track_layout* t, group_view* g, uint32_t j, int64_t q[4]) {
-    key_value(p, t, g, j, q);
-}
-
-/* ---------------------------------------------------------------- sampling state */
-/* A track in the scratch: its layout, what its descriptor stores, the four keys around the
- * last sample (i - 1 ... i + 2, ends repeated) with their curve, and the last group read. */
+/* A track in the scratch: its window and curve (rmal_payload.h), its layout, the reader and
+ * the key it stands at (the window's slot 3, unless at_end). */
 typedef struct track_state {
+    mcd_rmal_curve W;
     track_layout L;
-    mcd_quat ref;
-    float axis[4];
-    uint32_t valid;
-    uint32_t i;     /* the segment [key i, key i + 1] the curve below belongs to */
-    uint32_t u3;    /* the unary bit of key min(i + 2, last) */
-    uint32_t pad;
-    float t[4];     /* frames of keys i - 1 ... i + 2 */
-    float v[4][4];  /* their values */
-    float t1, t2, inv_h, pad2;
-    float coef[4][4];
-    group_view group;
+    reader R;
+    uint32_t frame3;
+    int32_t q3[4];
 } track_state;
 
-typedef struct node_plan {
-    mcd_transform base; /* rest pose and constants resolved once per clip */
-    int16_t track[3];   /* rotation, translation, scale track, or -1 */
-    uint16_t pad;
-} node_plan;
+/* The scratch size is part of the format (docs/FORMAT.md, RMAL version 3 "Sampling"): changing
+ * this structure is a new section version. Plain 32-bit fields only, so every ABI agrees. */
+typedef char track_state_is_292_bytes[sizeof(track_state) == 292u ? 1 : -1];
 
-/* The scratch sizes are part of the format (docs/FORMAT.md, RMAL "Sampling"): changing these
- * structures is a new section version. Plain 32-bit fields only, so every ABI agrees. */
-typedef char node_plan_is_48_bytes[sizeof(node_plan) == 48u ? 1 : -1];
-typedef char track_state_is_348_bytes[sizeof(track_state) == 348u ? 1 : -1];
-
-static size_t rma_scratch_size(const mcd_clip_view* v) {
-    uint32_t nodes = mcd_rd_u32(v->payload + 8), tracks = mcd_rd_u32(v->payload + 12);
-    return mcd_align16(sizeof(node_plan) * nodes) + mcd_align16(sizeof(track_state) * tracks);
-}
-
-static void scratch_views(void* scratch, uint32_t nodes, node_plan** plans, track_state** tracks) {
-    *plans = (node_plan*)scratch;
-    *tracks = (track_state*)((uint8_t*)scratch + mcd_align16(sizeof(node_plan) * nodes));
-}
-
-/* Window slot `slot` from a decoded key (four components: the unused ones are 0). */
-static void store_key(track_state* ts, uint32_t slot, uint32_t frame, const int64_t q[4]) {
+/* ---------------------------------------------------------------- layout */
+/* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`; checks
+ * what the descriptor alone shows and that the track fits before `limit`. */
+static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit, track_layout* t,
+                                 uint32_t* data_bytes, uint32_t* end_out) {
+    mcd_rmal_desc D;
+    uint64_t end;
     uint32_t c;
-    ts->t[slot] = (float)frame;
-    /* Binary64 first: q may exceed 2^24 on long clips, where binary32 would round it. */
-    for (c = 0; c < 4u; ++c) ts->v[slot][c] = (float)((double)q[c] * (double)ts->L.step[c]);
-}
-
-static void repeat_slot(track_state* ts, uint32_t to, uint32_t from) {
-    memcpy(ts->v[to], ts->v[from], sizeof ts->v[to]);
-    ts->t[to] = ts->t[from];
-}
-
-/* The curve of the window, all four components (a component past the track's is 0 in every
- * key, so its coefficients are 0): a constant count unrolls. */
-static void set_curve(track_state* ts) {
-    ts->t1 = ts->t[1];
-    ts->t2 = ts->t[2];
-    /* A detached first segment (capture that jumps after frame 0): key 0 and key 1 are each
-     * an end of their curves, so the first segment is the straight line between them and key
-     * 0 takes no part in key 1's tangent. */
-    if (ts->L.split && ts->i <= 1u) {
-        float t[4], v[4][4];
-        memcpy(t, ts->t, sizeof t);
-        memcpy(v, ts->v, sizeof v);
-        memcpy(v[0], v[1], sizeof v[0]);
-        t[0] = t[1];
-        if (ts->i == 0) {
-            memcpy(v[3], v[2], sizeof v[3]);
-            t[3] = t[2];
-        }
-        ts->inv_h = mcd_segment_coefficients(t, (const float(*)[4])v, 4u, ts->coef);
-    } else {
-        ts->inv_h = mcd_segment_coefficients(ts->t, (const float(*)[4])ts->v, 4u, ts->coef);
+    mcd_result r = mcd_rmal_parse_desc(d, frames, &D);
+    if (r != MCD_OK) return r;
+    /* Byte 1: the first segment detached (bit 0), blocks of 2^(bits 1-3) keys; byte 3 zero. */
+    t->shift = (d[1] >> 1) & 7u;
+    if ((d[1] >> 4) || t->shift < 1 || t->shift > MAX_BLOCK_SHIFT || d[3]) return MCD_ERROR_MALFORMED;
+    if (D.data_bytes > MAX_DATA_BYTES) return MCD_ERROR_MALFORMED;
+    t->dims = (uint8_t)D.dims;
+    t->keys = D.keys;
+    t->frames = frames;
+    t->fbits = (uint8_t)mcd_rmal_bits_for(frames - 1u);
+    t->obits = (uint8_t)D.offset_bits;
+    for (c = 0; c < 4; ++c) {
+        t->abits[c] = D.abits[c];
+        t->step[c] = D.step[c];
     }
-    ts->valid = 1;
+    t->rows = (t->keys + (1u << t->shift) - 1u) >> t->shift;
+    t->row_bits = t->fbits + t->obits + K_BITS * (t->dims + 1u) + D.anchor_bits;
+    t->table = at;
+    end = at + mcd_rmal_packed_bytes(t->rows, t->row_bits);
+    t->data = (uint32_t)(end > limit ? limit : end);
+    end += D.data_bytes;
+    if (end > limit) return MCD_ERROR_MALFORMED;
+    *data_bytes = D.data_bytes;
+    *end_out = (uint32_t)end;
+    return MCD_OK;
 }
 
-/* Random access: the segment holding frame position x, its four keys read afresh. */
+/* ---------------------------------------------------------------- codes and rows */
+/* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of one
+ * 64-bit load (a code is at most 16 + 32 bits). */
+static MCD_HOT_INLINE uint64_t rice(const uint8_t* data, uint32_t* bit, uint32_t k) {
+    uint64_t w = mcd_rd_u64(data + (*bit >> 3)) >> (*bit & 7u);
+    uint32_t q = mcd_lowest_bit(w | ((uint64_t)1 << RICE_CAP));
+    if (q < RICE_CAP) {
+        *bit += q + 1u + k;
+        return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+    }
+    *bit += RICE_CAP + RICE_RAW;
+    return (w >> RICE_CAP) & 0xFFFFFFFFu;
+}
+
+static MCD_HOT_INLINE int64_t unzig(uint64_t z) {
+    return (int64_t)(z >> 1) ^ -(int64_t)(z & 1u);
+}
+
+/* The frame of row e's key. */
+static uint32_t row_frame(const uint8_t* p, const track_layout* t, uint32_t e) {
+    return mcd_read_bits(p + t->table, (uint64_t)e * t->row_bits, t->fbits);
+}
+
+/* Row e: the reader at the block's first key, which is `k` (the anchor). */
+static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uint32_t e, reader* R, key* k) {
+    const uint8_t* table = p + t->table;
+    uint64_t bit = (uint64_t)e * t->row_bits;
+    uint64_t h = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* frame and offset: <= 56 bits */
+    uint32_t c;
+    k->frame = (uint32_t)h & ((1u << t->fbits) - 1u);
+    R->bit = (uint32_t)((h >> t->fbits) & ((((uint64_t)1) << t->obits) - 1u));
+    bit += t->fbits + t->obits;
+    h = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* parameters: <= 25 bits */
+    for (c = 0; c < 5u; ++c) R->k[c] = (uint8_t)((h >> (K_BITS * c)) & 31u);
+    bit += K_BITS * (t->dims + 1u);
+    k->q[3] = 0;
+    for (c = 0; c < t->dims; ++c) {
+        k->q[c] = mcd_read_signed(table, bit, t->abits[c]);
+        bit += t->abits[c];
+    }
+    R->e = e;
+    R->r = 0;
+    R->n = e + 1u < t->rows ? 1u << t->shift : t->keys - (e << t->shift);
+}
+
+/* The key after `from` inside the reader's block into `to` (may be `from`). D is a constant in
+ * each caller's copy, so the component loop unrolls. */
+static MCD_HOT_INLINE void step_d(const uint8_t* data, reader* R, const key* from, key* to, uint32_t D) {
+    uint32_t bit = R->bit, c;
+    to->frame = from->frame + 1u + (uint32_t)rice(data, &bit, R->k[0]);
+    for (c = 0; c < D; ++c) to->q[c] = from->q[c] + unzig(rice(data, &bit, R->k[c + 1u]));
+    if (D == 3u) to->q[3] = 0;
+    R->bit = bit;
+    R->r++;
+}
+
+static void step(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+    if (t->dims == 3u)
+        step_d(p + t->data, R, from, to, 3u);
+    else
+        step_d(p + t->data, R, from, to, 4u);
+}
+
+/* The key after `from`, into the next block when the reader's ends; 0 past the last key. */
+static int next_key(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+    if (R->r + 1u < R->n) {
+        step(p, t, R, from, to);
+        return 1;
+    }
+    if (R->e + 1u >= t->rows) return 0;
+    load_row(p, t, R->e + 1u, R, to);
+    return 1;
+}
+
+/* ---------------------------------------------------------------- random access */
+/* The block of frame xi: the last whose first key is at or before it (block 0 starts at 0). */
+static uint32_t find_block(const uint8_t* p, const track_layout* t, uint32_t xi) {
+    uint32_t lo = 0, n = t->rows;
+    while (n > 1u) {
+        uint32_t half = n >> 1;
+        lo = row_frame(p, t, lo + half) <= xi ? lo + half : lo;
+        n -= half;
+    }
+    return lo;
+}
+
+/* From the block's first key (ring[0]) on to key i + 1, the first after xi, inside the block:
+ * returns key i's rank j, keys j - 3 ... j + 1 in ring[rank & 3]; the reader at key j + 1 (or at
+ * key j = n - 1 when the block ends first). */
+static MCD_HOT_INLINE uint32_t walk_d(const uint8_t* data, reader* R, key ring[4], uint32_t xi, uint32_t D) {
+    uint32_t bit = R->bit, j, c, n = R->n;
+    for (j = 0; j + 1u < n; ++j) {
+        const key* a = &ring[j & 3u];
+        key* b = &ring[(j + 1u) & 3u];
+        b->frame = a->frame + 1u + (uint32_t)rice(data, &bit, R->k[0]);
+        for (c = 0; c < D; ++c) b->q[c] = a->q[c] + unzig(rice(data, &bit, R->k[c + 1u]));
+        if (D == 3u) b->q[3] = 0;
+        if (b->frame > xi) break;
+    }
+    R->bit = bit;
+    R->r = j + 1u < n ? j + 1u : j;
+    return j;
+}
+
+/* The last key of block e (the whole block's decode). */
+static void block_last_key(const uint8_t* p, const track_layout* t, uint32_t e, key* k) {
+    reader P;
+    load_row(p, t, e, &P, k);
+    while (P.r + 1u < P.n) step(p, t, &P, k, k);
+}
+
+static void set_key3(track_state* ts, const key* k) {
+    uint32_t c;
+    ts->frame3 = k->frame;
+    for (c = 0; c < 4u; ++c) ts->q3[c] = (int32_t)k->q[c]; /* validated: |q| < 2^30 */
+}
+
+/* Random access: the segment holding frame position x, its four keys decoded afresh; key i - 1
+ * from the previous block when key i is a block's first. */
 static void locate(const uint8_t* p, track_state* ts, float x) {
     const track_layout* t = &ts->L;
-    uint32_t last = t->keys - 1u, xi = (uint32_t)x, i, c, u[4], s;
-    int64_t q[4];
-    if (xi > t->frames - 1u) xi = t->frames - 1u;
-    bit_window b;
-    c = cell_of(t, xi);
-    u[1] = cell_end(p, t, c);
-    i = u[1] - c - 1u; /* the ones before the zero closing c are the keys in cells up to c */
-    b = window_at(p, t, u[1]);
-    u[1] = prev_one(p, t, &b, u[1]);
-    /* x at the last frame: its segment is the one before. Keys of x's own cell after x (at
-     * most a cell's frames; key 0 is frame 0): the key before them. */
-    if (i >= last) {
-        i = last - 1u;
-        u[1] = prev_one(p, t, &b, u[1]);
-    }
-    while (t->in_cell_bits && i > 0 && key_frame_at(p, t, i, u[1]) > xi) {
-        i--;
-        u[1] = prev_one(p, t, &b, u[1]);
-    }
-    u[0] = i > 0 ? prev_one(p, t, &b, u[1]) : u[1];
-    u[2] = next_one(p, t, &b, u[1]);
-    u[3] = i + 2u <= last ? next_one(p, t, &b, u[2]) : u[2];
-    ts->i = i;
-    ts->u3 = u[3];
-    /* Keys i - 1 ... i + 2, ends repeated. */
-    for (s = i > 0 ? 0u : 1u; s < 4u && i + s <= last + 1u; ++s) {
-        key_value(p, t, &ts->group, i + s - 1u, q);
-        store_key(ts, s, key_frame_at(p, t, i + s - 1u, u[s]), q);
-    }
-    if (i == 0) repeat_slot(ts, 0, 1);
-    if (i + 2u > last) repeat_slot(ts, 3, 2);
-    set_curve(ts);
+    uint32_t xi = (uint32_t)x, j, e;
+    key ring[4], k3;
+    reader R;
+    if (xi > t->frames - 2u) xi = t->frames - 2u; /* the last frame: the segment before it */
+    e = find_block(p, t, xi);
+    load_row(p, t, e, &R, &ring[0]);
+    j = t->dims == 3u ? walk_d(p + t->data, &R, ring, xi, 3u) : walk_d(p + t->data, &R, ring, xi, 4u);
+    if (j + 1u >= R.n) load_row(p, t, e + 1u, &R, &ring[(j + 1u) & 3u]); /* key i ends its block */
+    if (j == 0u && e > 0u) block_last_key(p, t, e - 1u, &ring[3]);
+    if (j > 0u || e > 0u) mcd_rmal_store_key(&ts->W, 0, ring[(j + 3u) & 3u].frame, ring[(j + 3u) & 3u].q, t->step);
+    mcd_rmal_store_key(&ts->W, 1, ring[j & 3u].frame, ring[j & 3u].q, t->step);
+    mcd_rmal_store_key(&ts->W, 2, ring[(j + 1u) & 3u].frame, ring[(j + 1u) & 3u].q, t->step);
+    if (j == 0u && e == 0u) mcd_rmal_repeat_slot(&ts->W, 0, 1);
+    k3 = ring[(j + 1u) & 3u];
+    R.at_end = (uint8_t)!next_key(p, t, &R, &k3, &k3);
+    if (R.at_end)
+        mcd_rmal_repeat_slot(&ts->W, 3, 2);
+    else
+        mcd_rmal_store_key(&ts->W, 3, k3.frame, k3.q, t->step);
+    set_key3(ts, &k3);
+    ts->R = R;
+    ts->W.i = (e << t->shift) + j;
+    mcd_rmal_set_curve(&ts->W);
 }
 
-/* Keys a step forward may read one by one before a fresh locate is cheaper. */
-#define MAX_ADVANCE 3u
-
-/* Sequential playback and short steps forward (a game tick moves a few frames): the window
- * moves on by n keys (1 ... MAX_ADVANCE) in one shift, then reads the new last keys, whose
- * unary bits and frames the scan ahead found. One shift, not one a key: a shift reads slots
- * whole, and a key just stored would make it wait for the stores. */
-static void advance(const uint8_t* p, track_state* ts, uint32_t n, const uint32_t u[MAX_ADVANCE],
-                    const uint32_t f[MAX_ADVANCE]) {
-    uint32_t last = ts->L.keys - 1u, k;
-    memmove(ts->t, ts->t + n, (4u - n) * sizeof ts->t[0]);
-    memmove(ts->v[0], ts->v[n], (4u - n) * sizeof ts->v[0]);
-    for (k = 0; k < n; ++k) {
-        uint32_t slot = 4u - n + k;
-        if (ts->i + k + 3u <= last) { /* key i + 2 of the window after k + 1 steps */
-            int64_t q[4];
-            ts->u3 = u[k];
-            one_key_value(p, &ts->L, &ts->group, ts->i + k + 3u, q);
-            store_key(ts, slot, f[k], q);
-        } else {
-            repeat_slot(ts, slot, slot - 1u);
-        }
+/* ---------------------------------------------------------------- playback */
+/* One key on (the window's slot 2 is not the last key): the key after slot 3's, if any,
+ * becomes slot 3. */
+static void advance(const uint8_t* p, track_state* ts) {
+    key k;
+    uint32_t c;
+    memmove(ts->W.t, ts->W.t + 1, 3u * sizeof ts->W.t[0]);
+    memmove(ts->W.v[0], ts->W.v[1], 3u * sizeof ts->W.v[0]);
+    ts->W.i++;
+    k.frame = ts->frame3;
+    for (c = 0; c < 4u; ++c) k.q[c] = ts->q3[c];
+    if (next_key(p, &ts->L, &ts->R, &k, &k)) {
+        mcd_rmal_store_key(&ts->W, 3, k.frame, k.q, ts->L.step);
+        set_key3(ts, &k);
+    } else {
+        ts->R.at_end = 1;
+        mcd_rmal_repeat_slot(&ts->W, 3, 2);
     }
-    ts->i += n;
-}
-
-/* Frames past the window's last key from which a step forward first asks far_ahead: a game
- * tick moves a frame or two and would only pay for the question. */
-#define FAR_FRAMES 8.0f
-
-/* True when x is at or past key i + 1 + MAX_ADVANCE (which is before the last), so that
- * keys_ahead would give up: that key's cell, from the unary bits after the window's last key,
- * ends at or before x. A random jump forward then locates at once instead of reading keys
- * one by one first. */
-static int far_ahead(const uint8_t* p, const track_state* ts, float x) {
-    uint32_t from = ts->u3 + 1u, byte = from >> 3, k, cell;
-    uint64_t w = mcd_rd_u64(p + ts->L.bitmap + byte) >> (from & 7u); /* >= 57 bits from `from` */
-    if (ts->L.words * 64u - from < 57u) w &= ((uint64_t)1 << (ts->L.words * 64u - from)) - 1u;
-    w &= ((uint64_t)1 << 57) - 1u;
-    for (k = 2; k < MAX_ADVANCE; ++k) w &= w - 1u; /* the ones of keys i + 3 ... before it */
-    if (!w) return 0;
-    cell = from + mcd_lowest_bit(w) - (ts->i + 1u + MAX_ADVANCE);
-    return cell + 1u < ts->L.cells && (float)cell_frame(&ts->L, cell + 1u) <= x;
-}
-
-/* Keys the window moves on for x at or past t_{i+1}: the first n with x < t_{i+1+n} (or
- * t_{i+1+n} the last key), found from the key times alone, with the unary bit and frame of
- * each key the window takes on (past the last key: none); 0 when more than MAX_ADVANCE. */
-static uint32_t keys_ahead(const uint8_t* p, const track_state* ts, float x, uint32_t u[MAX_ADVANCE],
-                           uint32_t f[MAX_ADVANCE]) {
-    uint32_t n, k = ts->i + 2u, at = ts->u3, last = ts->L.keys - 1u;
-    if (x >= ts->t[3] + FAR_FRAMES && ts->i + 1u + MAX_ADVANCE < last && far_ahead(p, ts, x)) return 0;
-    for (n = 1; n <= MAX_ADVANCE; ++n) {
-        if (k < last) { /* key k + 1, the window's new last key */
-            at = one_after(p, &ts->L, at);
-            u[n - 1u] = at;
-            f[n - 1u] = key_frame_at(p, &ts->L, ++k, at);
-        } else { /* unread: the window repeats the last key */
-            u[n - 1u] = at;
-            f[n - 1u] = 0;
-        }
-        /* The segment's end is now key i + 1 + n. */
-        if (ts->i + 1u + n >= last || x < (n == 1u ? ts->t[3] : (float)f[n - 2u])) return n;
-    }
-    return 0;
 }
 
 /* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
  * Either way the window is the four keys around x's segment, so the curve is the same bits. */
-static void track_value(const uint8_t* p, track_state* ts, float x, float out[4]) {
-    uint32_t c, n, last = ts->L.keys - 1u, u[MAX_ADVANCE], f[MAX_ADVANCE];
-    float s;
-    if (last == 0) { /* a one-frame clip */
-        for (c = 0; c < ts->L.dims; ++c) out[c] = ts->v[0][c];
+static void track_value(const uint8_t* p, mcd_rmal_curve* w, float x, float out[4]) {
+    track_state* ts = (track_state*)w;
+    uint32_t n;
+    if (ts->L.keys == 1u) { /* a one-frame clip */
+        memcpy(out, ts->W.v[0], sizeof ts->W.v[0]);
         return;
     }
-    if (!ts->valid || x < ts->t1) {
+    if (!ts->W.valid || x < ts->W.t1) {
         locate(p, ts, x);
-    } else if (x >= ts->t2 && ts->i + 1u < last) { /* x = the last key is the last segment's */
-        n = keys_ahead(p, ts, x, u, f);
-        if (n == 0) {
+    } else if (x >= ts->W.t2 && !ts->R.at_end) { /* x = the last key is the last segment's */
+        if (x >= ts->W.t[3] + FAR_FRAMES) { /* a jump: locate at once rather than step there */
             locate(p, ts, x);
         } else {
-            advance(p, ts, n, u, f);
-            set_curve(ts);
+            for (n = 0; n < MAX_ADVANCE && x >= ts->W.t[2] && !ts->R.at_end; ++n) advance(p, ts);
+            if (x >= ts->W.t[2] && !ts->R.at_end)
+                locate(p, ts, x);
+            else
+                mcd_rmal_set_curve(&ts->W);
         }
     }
-    s = (x - ts->t1) * ts->inv_h;
-    for (c = 0; c < 4u; ++c)
-        out[c] = ((ts->coef[3][c] * s + ts->coef[2][c]) * s + ts->coef[1][c]) * s + ts->coef[0][c];
+    mcd_rmal_eval(&ts->W, x, out);
 }
 
-/* Per clip: each track's layout and constants, each node's base transform and tracks. */
-static void prepare(const mcd_clip_view* v, node_plan* plans, track_state* tracks) {
-    const uint8_t* p = v->payload;
-    header H;
-    const uint8_t* d;
-    uint32_t i, k, m, track = 0, consts = 0, at, off;
-    parse_header(p, v->payload_size, &H); /* validated: cannot fail */
-    d = H.descs;
-    for (i = 0, off = 0; i < H.tracks; ++i) off += desc_size(H.descs[off]);
-    at = (uint32_t)mcd_align4((size_t)(H.descs - p) + off);
-    for (i = 0; i < H.tracks; ++i) {
-        track_state* ts = &tracks[i];
-        memset(ts, 0, sizeof *ts);
-        track_geometry(d, H.frames, at, H.size, &ts->L);
-        ts->group.row = UINT32_MAX;
-        if (ts->L.kind == KIND_MRP || ts->L.kind == KIND_TWIST) ts->ref = mcd_reference_at(d + 20);
-        if (ts->L.kind == KIND_TWIST) mcd_axis_at(d + 28, ts->axis);
-        if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
-            int64_t q[4];
-            key_value(p, &ts->L, &ts->group, 0, q);
-            store_key(ts, 0, 0, q);
-        }
-        at = ts->L.end;
-        d += desc_size(ts->L.kind);
+/* A track's state from its validated descriptor (rmal_payload.h). */
+static uint32_t init_track(const uint8_t* p, const uint8_t* d, uint32_t frames, uint32_t at, uint32_t limit,
+                           mcd_rmal_curve* w) {
+    track_state* ts = (track_state*)w;
+    uint32_t data_bytes, end = at;
+    track_geometry(d, frames, at, limit, &ts->L, &data_bytes, &end); /* validated: cannot fail */
+    if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
+        key k;
+        load_row(p, &ts->L, 0, &ts->R, &k);
+        mcd_rmal_store_key(&ts->W, 0, 0, k.q, ts->L.step);
     }
-    for (i = 0; i < H.nodes; ++i) {
-        node_plan* np = &plans[i];
-        uint32_t mode = H.modes[i];
-        if (v->skeleton)
-            mcd_skel_rest(v->skeleton, i, &np->base);
-        else
-            mcd_transform_identity(&np->base); /* curve sets of codec rma-pca have no skeleton */
-        for (m = 0; m < 3; ++m) {
-            uint32_t mm = (mode >> (2u * m)) & 3u, n = m == 0 ? 4u : 3u;
-            float* field = m == 0 ? np->base.rotation : m == 1 ? np->base.translation : np->base.scale;
-            np->track[m] = -1;
-            if (mm == MODE_CONSTANT) {
-                for (k = 0; k < n; ++k) field[k] = mcd_rd_f32(H.consts + 4u * (consts + k));
-                consts += n;
-            } else if (mm == MODE_ANIMATED) {
-                np->track[m] = (int16_t)track++;
-            }
-        }
-    }
+    return end;
+}
+
+static size_t rma_scratch_size(const mcd_clip_view* v) {
+    return mcd_rmal_scratch_size(v, sizeof(track_state));
 }
 
 static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
                        int fresh) {
-    node_plan* plans;
-    track_state* tracks;
-    uint32_t i, nodes = mcd_rd_u32(v->payload + 8);
     (void)flags;
-    scratch_views(scratch, nodes, &plans, &tracks);
-    if (fresh) prepare(v, plans, tracks);
-    for (i = 0; i < nodes; ++i) {
-        const node_plan* np = &plans[i];
-        float val[4];
-        out[i] = np->base;
-        if (np->track[0] >= 0) {
-            track_state* ts = &tracks[np->track[0]];
-            track_value(v->payload, ts, x, val);
-            mcd_set_rotation(out[i].rotation, mcd_track_rotation(ts->L.kind, ts->ref, ts->axis, val));
-        }
-        if (np->track[1] >= 0) {
-            track_value(v->payload, &tracks[np->track[1]], x, val);
-            memcpy(out[i].translation, val, sizeof out[i].translation);
-        }
-        if (np->track[2] >= 0) {
-            track_value(v->payload, &tracks[np->track[2]], x, val);
-            memcpy(out[i].scale, val, sizeof out[i].scale);
-        }
-    }
+    mcd_rmal_sample(v, x, out, scratch, fresh, sizeof(track_state), init_track, track_value);
 }
 
 /* ---------------------------------------------------------------- validation */
-/* Bits [from, to) of p are zero. */
-static int zero_bits(const uint8_t* p, uint64_t from, uint64_t to) {
-    for (; from < to; ++from)
-        if (mcd_read_bits(p, from, 1)) return 0;
+/* One code at *bit of a data area whose codes end by bit `end`, into z: 0 when it reads past
+ * `end` or is an escape of a value that had a short code (no other code is valid). */
+static int checked_code(const uint8_t* data, uint64_t* bit, uint32_t k, uint64_t end, uint64_t* z) {
+    uint32_t b = (uint32_t)*bit; /* < end < 2^32 (MAX_DATA_BYTES) */
+    if (*bit >= end) return 0;
+    *z = rice(data, &b, k);
+    /* Only an escape is 48 bits long: a short code is at most 15 + 1 + 31. */
+    if (b - (uint32_t)*bit == RICE_CAP + RICE_RAW && (*z >> k) < RICE_CAP) return 0;
+    *bit = b;
+    return *bit <= end;
+}
+
+/* A key's lattice integers: |q| < 2^30, and each value (binary64 product, then binary32)
+ * within the format's bound. */
+static int key_in_range(const track_layout* t, const key* k) {
+    uint32_t c;
+    for (c = 0; c < t->dims; ++c) {
+        if (k->q[c] >= MCD_RMAL_MAX_Q || k->q[c] <= -MCD_RMAL_MAX_Q) return 0;
+        if (!mcd_in_bounds((float)((double)k->q[c] * (double)t->step[c]))) return 0;
+    }
     return 1;
 }
 
-/* Every rule of one track's bitmap, rank table, group table and records, reading every key. */
-static mcd_result check_track(const uint8_t* p, const track_layout* t) {
-    uint64_t total = 0, data_bits = 8u * (uint64_t)t->data_bytes, bits;
-    uint32_t b, e, c, j;
-    group_view g;
-    /* Key times: K ones and NC zeros, zero bits after them; key 0 alone in cell 0, the last
-     * key alone in the last cell; frames increasing, interior keys before the last frame; each
-     * rank entry the keys in the cells below its block. */
-    {
-        uint64_t n = (uint64_t)t->keys + t->cells, bit;
-        uint32_t k = 0, cell = 0, last_frame = 0, in_cell = 0;
-        if (!zero_bits(p + t->bitmap, n, 64u * (uint64_t)t->words)) return MCD_ERROR_MALFORMED;
-        for (bit = 0; bit < n; ++bit) {
-            if ((cell & 63u) == 0 && in_cell == 0 &&
-                mcd_read_bits(p + t->rank, (uint64_t)(cell >> RANK_SHIFT) * t->rank_bits, t->rank_bits) != k)
-                return MCD_ERROR_MALFORMED;
-            if ((bitmap_word(p, t, (uint32_t)(bit >> 6)) >> (bit & 63u)) & 1u) {
-                uint32_t f;
-                if (k >= t->keys || cell >= t->cells) return MCD_ERROR_MALFORMED;
-                f = key_frame(p, t, k, cell);
-                if (cell == 0 || cell == t->cells - 1u) {
-                    if (in_cell || f != cell_frame(t, cell)) return MCD_ERROR_MALFORMED;
-                } else if (f > t->frames - 2u) {
-                    return MCD_ERROR_MALFORMED;
-                }
-                if (k > 0 && f <= last_frame) return MCD_ERROR_MALFORMED;
-                last_frame = f;
-                k++;
-                in_cell++;
-            } else {
-                if (cell >= t->cells || (cell == 0 && k != 1u)) return MCD_ERROR_MALFORMED;
-                cell++;
-                in_cell = 0;
-            }
-        }
-        if (k != t->keys || cell != t->cells) return MCD_ERROR_MALFORMED;
-        /* The last cell holds exactly the last key: "0 1 0" ends the bits (or "1 0" alone). */
-        if (t->cells > 1u && (!((bitmap_word(p, t, (uint32_t)((n - 2u) >> 6)) >> ((n - 2u) & 63u)) & 1u) ||
-                              ((bitmap_word(p, t, (uint32_t)((n - 3u) >> 6)) >> ((n - 3u) & 63u)) & 1u)))
-            return MCD_ERROR_MALFORMED;
-    }
-    if (!zero_bits(p + t->rank, (uint64_t)((t->cells + 63u) / 64u) * t->rank_bits,
-                   8u * packed_bytes((t->cells + 63u) / 64u, t->rank_bits)))
+/* Every rule of one track's row table and data area, decoding every key. */
+static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t data_bytes) {
+    const uint8_t* data = p + t->data;
+    uint64_t end = 8u * (uint64_t)data_bytes, bit = 0;
+    uint32_t e, r, c, last = 0;
+    if (!mcd_rmal_zero_bits(p + t->table, (uint64_t)t->rows * t->row_bits,
+                            8u * mcd_rmal_packed_bytes(t->rows, t->row_bits)))
         return MCD_ERROR_MALFORMED;
-    if (!zero_bits(p + t->table, (uint64_t)t->rows * t->row_bits, 8u * packed_bytes(t->rows, t->row_bits)))
-        return MCD_ERROR_MALFORMED;
-    if (t->in_cell_bits &&
-        !zero_bits(p + t->places, (uint64_t)t->keys * t->in_cell_bits, 8u * packed_bytes(t->keys, t->in_cell_bits)))
-        return MCD_ERROR_MALFORMED;
-    /* Groups back to back from bit 0, each its records then its outliers; the last row
-     * (the last anchor) marks the end and has widths 0. */
     for (e = 0; e < t->rows; ++e) {
-        group_load(p, t, e, &g);
-        if (g.bit != total) return MCD_ERROR_MALFORMED;
-        if (e + 1u == t->rows) {
-            if (g.rec_bits) return MCD_ERROR_MALFORMED;
-            break;
+        reader R;
+        key k;
+        load_row(p, t, e, &R, &k);
+        /* Each block's codes where the one before ended; frames increasing from 0. */
+        if (R.bit != bit || (e == 0 ? k.frame != 0 : k.frame <= last) || k.frame > t->frames - 1u)
+            return MCD_ERROR_MALFORMED;
+        if (!key_in_range(t, &k)) return MCD_ERROR_MALFORMED;
+        for (r = 1; r < R.n; ++r) {
+            uint64_t z;
+            if (!checked_code(data, &bit, R.k[0], end, &z) || z >= (uint64_t)(t->frames - 1u - k.frame))
+                return MCD_ERROR_MALFORMED; /* the gap: the frame after stays at most F - 1 */
+            k.frame += 1u + (uint32_t)z;
+            for (c = 0; c < t->dims; ++c) {
+                if (!checked_code(data, &bit, R.k[c + 1u], end, &z)) return MCD_ERROR_MALFORMED;
+                k.q[c] += unzig(z); /* z < 2^36: no overflow */
+            }
+            if (!key_in_range(t, &k)) return MCD_ERROR_MALFORMED;
         }
-        bits = (uint64_t)(g.span - 1u) * g.rec_bits;
-        if (total + bits > data_bits) return MCD_ERROR_MALFORMED;
-        for (j = 1; j < g.span; ++j)
-            for (c = 0; c < t->dims; ++c)
-                if (g.width[c] && mcd_read_bits(p + t->data, total + (uint64_t)(j - 1u) * g.rec_bits + g.shift[c], g.width[c]) ==
-                                      (uint32_t)1 << (g.width[c] - 1u))
-                    bits += t->abits[c];
-        total += bits;
-        if (total > data_bits) return MCD_ERROR_MALFORMED;
+        last = k.frame;
     }
-    /* The data area ends after the last group, zero-padded to a multiple of 4 bytes. */
-    if (t->data_bytes != mcd_align4((size_t)((total + 7u) / 8u))) return MCD_ERROR_MALFORMED;
-    if (!zero_bits(p + t->data, total, data_bits)) return MCD_ERROR_MALFORMED;
-    /* Every key's value within range. */
-    g.row = UINT32_MAX;
-    for (b = 0; b < t->keys; ++b) {
-        int64_t q[4];
-        one_key_value(p, t, &g, b, q);
-        for (c = 0; c < t->dims; ++c) {
-            if (q[c] >= MAX_Q || q[c] <= -MAX_Q) return MCD_ERROR_MALFORMED;
-            if (!mcd_in_bounds((float)((double)q[c] * (double)t->step[c]))) return MCD_ERROR_MALFORMED;
-        }
-    }
+    /* The last key on the last frame; the data area ends after the last block's codes, zero
+     * padded to a multiple of 4 bytes. */
+    if (last != t->frames - 1u) return MCD_ERROR_MALFORMED;
+    if (data_bytes != mcd_align4((size_t)((bit + 7u) / 8u))) return MCD_ERROR_MALFORMED;
+    if (!mcd_rmal_zero_bits(data, bit, end)) return MCD_ERROR_MALFORMED;
     return MCD_OK;
+}
+
+/* One track: its layout within [at, limit), then every rule of its data (rmal_payload.h). */
+static mcd_result check_one(const uint8_t* p, const uint8_t* desc, uint32_t frames, uint32_t at, uint32_t limit,
+                            uint32_t* end) {
+    track_layout t;
+    uint32_t data_bytes;
+    mcd_result r = track_geometry(desc, frames, at, limit, &t, &data_bytes, end);
+    if (r != MCD_OK) return r;
+    return check_track(p, &t, data_bytes);
 }
 
 static mcd_result rma_validate(const mcd_clip_view* v) {
-    const uint8_t* p = v->payload;
-    header H;
-    mcd_result r;
-    uint32_t i, m, k, off = 0, consts = 0, track = 0, at;
-    static const uint8_t kinds[3][2] = {{KIND_MRP, KIND_TWIST}, {KIND_TRANSLATION, 0}, {KIND_SCALE, 0}};
-    if ((size_t)(v->payload - v->section) < SECTION_HEADER) return MCD_ERROR_MALFORMED;
-    r = parse_header(p, v->payload_size, &H);
-    if (r != MCD_OK) return r;
-    if (H.size != v->payload_size || H.frames != v->frame_count || H.nodes != v->node_count) return MCD_ERROR_MALFORMED;
-    for (i = 0; i < H.constants; ++i)
-        if (!mcd_in_bounds(mcd_rd_f32(H.consts + 4u * i))) return MCD_ERROR_MALFORMED;
-    /* Node modes: constants and tracks taken in node order, rotation, translation, scale. */
-    for (i = 0; i < H.nodes; ++i) {
-        uint32_t mode = H.modes[i];
-        if (mode >> 6) return MCD_ERROR_MALFORMED;
-        for (m = 0; m < 3; ++m) {
-            uint32_t mm = (mode >> (2u * m)) & 3u, n = m == 0 ? 4u : 3u, kind;
-            if (mm == 3u) return MCD_ERROR_MALFORMED;
-            if (mm == MODE_CONSTANT) {
-                if (consts + n > H.constants) return MCD_ERROR_MALFORMED;
-                if (m == 0 && !mcd_unit_quat_at(H.consts + 4u * consts)) return MCD_ERROR_MALFORMED;
-                consts += n;
-            } else if (mm == MODE_ANIMATED) {
-                if (track >= H.tracks || (size_t)(H.descs - p) + off + 4u > H.size) return MCD_ERROR_MALFORMED;
-                kind = H.descs[off];
-                if (kind == 0 || (kind != kinds[m][0] && kind != kinds[m][1])) return MCD_ERROR_MALFORMED;
-                if ((size_t)(H.descs - p) + off + desc_size(kind) > H.size) return MCD_ERROR_MALFORMED;
-                if ((kind == KIND_MRP || kind == KIND_TWIST) && mcd_rd_u16(H.descs + off + 26)) return MCD_ERROR_MALFORMED;
-                if (kind == KIND_TWIST) {
-                    const uint8_t* a = H.descs + off + 28;
-                    float ax = (float)(int16_t)mcd_rd_u16(a), ay = (float)(int16_t)mcd_rd_u16(a + 2);
-                    float az = (float)(int16_t)mcd_rd_u16(a + 4);
-                    if (mcd_rd_u16(a + 6)) return MCD_ERROR_MALFORMED;
-                    if (ax * ax + ay * ay + az * az < 0.25f * 32767.0f * 32767.0f) return MCD_ERROR_MALFORMED;
-                }
-                off += desc_size(kind);
-                track++;
-            }
-        }
-    }
-    if (track != H.tracks || consts != H.constants) return MCD_ERROR_MALFORMED;
-    /* Track data back to back after the descriptors, then at least 8 zero bytes (the bit
-     * reader's 64-bit loads), zero padding to the payload size. */
-    at = (uint32_t)mcd_align4((size_t)(H.descs - p) + off);
-    if (at > H.size) return MCD_ERROR_MALFORMED;
-    for (k = (uint32_t)((size_t)(H.descs - p) + off); k < at; ++k)
-        if (p[k]) return MCD_ERROR_MALFORMED;
-    for (i = 0, off = 0; i < H.tracks; ++i) {
-        track_layout t;
-        r = track_geometry(H.descs + off, H.frames, at, H.size, &t);
-        if (r != MCD_OK) return r;
-        if (t.end + 8u > H.size) return MCD_ERROR_MALFORMED;
-        r = check_track(p, &t);
-        if (r != MCD_OK) return r;
-        at = t.end;
-        off += desc_size(t.kind);
-    }
-    if ((size_t)H.size != mcd_align4((size_t)at + 8u)) return MCD_ERROR_MALFORMED;
-    for (k = at; k < H.size; ++k)
-        if (p[k]) return MCD_ERROR_MALFORMED;
-    return MCD_OK;
+    return mcd_rmal_validate_payload(v, check_one);
 }
 
-/* The section: a 16-byte header, then the payloads back to back, each one a clip's. */
-static mcd_result rma_validate_section(const uint8_t* s, uint32_t size) {
-    uint32_t count;
-    if (size < SECTION_HEADER) return MCD_ERROR_MALFORMED;
-    count = mcd_rd_u32(s);
-    if (count == 0 || mcd_rd_u32(s + 4) || mcd_rd_u32(s + 8) || mcd_rd_u32(s + 12)) return MCD_ERROR_MALFORMED;
-    return mcd_check_payload_run(s, size, SECTION_HEADER, count, PAYLOAD_HEADER);
-}
-
-const mcd_codec_ops mcd_codec_rma_ops = {
-    MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 2u, rma_validate_section, rma_validate, rma_scratch_size, rma_sample};
+const mcd_codec_ops mcd_codec_rma_ops = {MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 3u, mcd_rmal_validate_section,
+                                         rma_validate, rma_scratch_size, rma_sample};

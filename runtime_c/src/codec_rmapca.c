@@ -121,7 +121,7 @@ static mcd_result check_set(const prefix* P, const uint8_t* set, const uint8_t* 
     if (set_size(set) < RMAL_MODES || set_size(set) > (size_t)(limit - set)) return MCD_ERROR_MALFORMED;
     if ((frames && set_frames(set) != frames) || (nodes && set_nodes(set) != nodes)) return MCD_ERROR_MALFORMED;
     set_view(P, set, &v);
-    if (mcd_codec_rma_ops.validate(&v) != MCD_OK) return MCD_ERROR_MALFORMED;
+    if (mcd_codec_rma_v2_ops.validate(&v) != MCD_OK) return MCD_ERROR_MALFORMED;
     for (i = 0, n = set_nodes(set); i < n; ++i)
         if (set[RMAL_MODES + i] & ~0x0Cu) return MCD_ERROR_MALFORMED; /* rma checked the bytes exist */
     return MCD_OK;
@@ -360,7 +360,7 @@ typedef struct rmap_views {
 static size_t rma_need(const prefix* P, const uint8_t* set) {
     mcd_clip_view v;
     set_view(P, set, &v);
-    return mcd_codec_rma_ops.scratch_size(&v);
+    return mcd_codec_rma_v2_ops.scratch_size(&v);
 }
 
 /* What a clip needs, from its curve sets' headers. */
@@ -677,8 +677,8 @@ static void add_piece_markers(const prefix* P, const clip_layout* C, const rmap_
         fresh = 1;
     }
     set_view(P, set, &cv);
-    mcd_codec_rma_ops.sample(&cv, clampf(x - (float)piece_lo(P, C, p), 0.0f, (float)(cv.frame_count - 1u)), 0,
-                             s->curves, s->piece_rma[which], fresh);
+    mcd_codec_rma_v2_ops.sample(&cv, clampf(x - (float)piece_lo(P, C, p), 0.0f, (float)(cv.frame_count - 1u)), 0,
+                                s->curves, s->piece_rma[which], fresh);
     if (primary == NO_PRIMARY) {
         for (i = 0; i < k; ++i) s->coef[i] = coef_of(s->curves, 0, i);
     } else {
@@ -690,8 +690,8 @@ static void add_piece_markers(const prefix* P, const clip_layout* C, const rmap_
         for (i = 0; i < k; ++i) s->coef[i] = coef_of(s->curves, 1, i);
         s->st->slot[which].primary = primary;
         set_view(P, pset, &cv);
-        mcd_codec_rma_ops.sample(&cv, clampf(r, 0.0f, (float)(cv.frame_count - 1u)), 0, s->curves,
-                                 s->primary_rma[which], pfresh);
+        mcd_codec_rma_v2_ops.sample(&cv, clampf(r, 0.0f, (float)(cv.frame_count - 1u)), 0, s->curves,
+                                    s->primary_rma[which], pfresh);
         for (i = 0; i < k; ++i) s->coef[i] += coef_of(s->curves, 0, i);
     }
     add_group_markers(P, piece_group(C, p), s->coef, weight, s->markers);
@@ -759,7 +759,7 @@ static void rmap_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_tra
     if (fresh) prepare(v, &P, &s);
     /* Root: translation, and the heading (or the whole rotation of a six-DOF clip). */
     set_view(&P, root_set(&C), &cv);
-    mcd_codec_rma_ops.sample(&cv, x, 0, s.curves, s.root_rma, fresh);
+    mcd_codec_rma_v2_ops.sample(&cv, x, 0, s.curves, s.root_rma, fresh);
     memcpy(root_t, s.curves[0].translation, sizeof root_t);
     removed = removed_rotation(&C, s.curves);
     /* Markers of the piece holding x, cross-faded with its neighbour within `blend` frames of

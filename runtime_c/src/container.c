@@ -145,7 +145,8 @@ static mcd_result scan_sections(const uint8_t* d, uint32_t count, int full, tabl
             if (ops) {
                 /* One section per codec: clips name it by index, the format keeps it unique. */
                 if (t->codec_sections[ops->codec]) return MCD_ERROR_MALFORMED;
-                if (version != ops->section_version) return MCD_ERROR_UNSUPPORTED;
+                ops = mcd_find_codec_version(ops->codec, version);
+                if (!ops) return MCD_ERROR_UNSUPPORTED;
                 t->codec_sections[ops->codec] = i + 1;
                 if (full && ops->validate_section) {
                     r = ops->validate_section(d + off, sz);
@@ -173,7 +174,8 @@ static mcd_result resolve_clip(const mcd_asset* a, uint32_t clip, mcd_clip_view*
     if (!ops) return MCD_ERROR_UNSUPPORTED;
     e = a->data + a->section_table + (size_t)section * MCD_SECTION_ENTRY_SIZE;
     if (mcd_rd_u32(e) != ops->section_kind) return MCD_ERROR_MALFORMED;
-    if (mcd_rd_u32(e + 4) != ops->section_version) return MCD_ERROR_UNSUPPORTED;
+    ops = mcd_find_codec_version(codec, mcd_rd_u32(e + 4));
+    if (!ops) return MCD_ERROR_UNSUPPORTED;
     if ((poff & 3u) != 0 || (uint64_t)poff + psize > mcd_rd_u32(e + 12)) return MCD_ERROR_MALFORMED;
     skel_off = mcd_skeleton_offset(a, skel);
     v->section = a->data + mcd_rd_u32(e + 8);

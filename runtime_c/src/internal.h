@@ -316,7 +316,7 @@ typedef struct mcd_clip_view {
 typedef struct mcd_codec_ops {
     uint32_t codec;           /* mcd_codec */
     uint32_t section_kind;    /* FourCC of the section that holds its payloads */
-    uint32_t section_version; /* the layout version of that section this runtime reads */
+    uint32_t section_version; /* a layout version of that section this runtime reads */
     /* Check the section as a whole (what is shared by its payloads), or NULL. Called once by
      * mcd_validate, before any payload is checked. */
     mcd_result (*validate_section)(const uint8_t* section, uint32_t size);
@@ -334,8 +334,11 @@ typedef struct mcd_codec_ops {
                    int fresh);
 } mcd_codec_ops;
 
-/* The codec table (codecs.c); NULL for an unknown codec id or section kind. */
+/* The codec table (codecs.c): one entry per codec and section version it reads. NULL for an
+ * unknown codec id, section kind or version. mcd_find_codec gives the version the encoder
+ * writes now; mcd_find_codec_by_kind any entry of the kind (which codec owns it). */
 const mcd_codec_ops* mcd_find_codec(uint32_t codec);
+const mcd_codec_ops* mcd_find_codec_version(uint32_t codec, uint32_t section_version);
 const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
 
 #define MCD_MAX_CODEC_ID 7u
@@ -343,7 +346,8 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
 /* Codec implementations. */
 extern const mcd_codec_ops mcd_codec_spline_ops;
 extern const mcd_codec_ops mcd_codec_neural_ops;
-extern const mcd_codec_ops mcd_codec_rma_ops;
+extern const mcd_codec_ops mcd_codec_rma_ops;    /* RMAL version 3 */
+extern const mcd_codec_ops mcd_codec_rma_v2_ops; /* RMAL version 2: rma before, rma-pca's curve sets */
 extern const mcd_codec_ops mcd_codec_fkwavelet_ops;
 extern const mcd_codec_ops mcd_codec_ikpredict_ops;
 extern const mcd_codec_ops mcd_codec_rmapca_ops;

@@ -1,12 +1,13 @@
 """Codec ``rma``: a motion library as per-track Catmull-Rom keys placed freely in time (seed 003
 §5.1), quantized on a step lattice chosen by the tolerance (§5.2), in one ``RMAL`` section
-(docs/FORMAT.md, version 2) that the runtime samples in place.
+(docs/FORMAT.md, version 3) that the runtime samples in place.
 
 It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
 top-down fitting, per-track budgets, repair through the C runtime), and differs in storage
-(:mod:`.rma_bitstream`): no block grid forces keys every 32 frames; key times are bits of a
-cell bitmap; key values are residuals from a chord between group anchors at per-group widths,
-with outliers whole, so any key is a few direct reads, at random as in sequence.
+(:mod:`.rma_bitstream`, :mod:`.rma_blocks`): no block grid forces keys every 32 frames; each
+track's keys come in blocks whose first key is whole in a row and whose other keys are Rice-coded
+frame gaps and differences, so playback decodes a key per key interval and a random access half
+a block.
 
 The seed's own representation (PCA of virtual markers per behaviour group, coefficient curves)
 is codec ``rma-pca`` (``--pca-variance``, :mod:`.rma_pca`); this one does not use it because
@@ -28,7 +29,8 @@ from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
 from . import CheckFn, ClipResult, CodecOutput, ProgressFn, encode_each_clip
-from .rma_bitstream import GROUP_SHIFTS, CurveTrack, WrittenTracks, payload
+from .rma_bitstream import Blocks, CurveTrack, WrittenTracks, payload
+from .rma_blocks import DEFAULT_BLOCK_KEYS, MAX_BLOCK_SHIFT
 
 if TYPE_CHECKING:
     from ..bake import Runner
@@ -48,14 +50,15 @@ class RMASettings(KeyframeSettings):
         time costs a bit of the track's cell bitmap; a track that needs a key elsewhere goes on
         in cells of half the size. None: 4 when every node's tolerance is at least 0.25 cm,
         else 1 (dense keys).
-    group_shifts : tuple of int, default (3, 4, 5)
-        Each track's keys come in groups of ``2**s`` keys, s the one of these that takes the
-        fewest bytes (docs/FORMAT.md, RMAL): a group costs a row (offset, widths, its first
-        key whole), and its other keys are residuals from the chord between two rows' keys.
+    block_keys : int, default 32
+        Each track's keys come in blocks of this many keys (2, 4 ... 64; docs/FORMAT.md, RMAL
+        version 3): a block costs a row (its first key whole, where its codes start, their Rice
+        parameters), and a random access decodes half a block on average. Larger blocks take
+        fewer bytes and make random access slower; playback in order costs the same.
     """
 
     key_grid: int | None = None
-    group_shifts: tuple[int, ...] = GROUP_SHIFTS
+    block_keys: int = DEFAULT_BLOCK_KEYS
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -67,11 +70,12 @@ class RMASettings(KeyframeSettings):
         self.key_grid = int(self.key_grid)
         if self.key_grid not in (1, 2, 4, 8):
             raise ValueError(f"key_grid must be 1, 2, 4 or 8, got {self.key_grid}")
-        if isinstance(self.group_shifts, (int, str)):
-            self.group_shifts = (int(self.group_shifts),)
-        self.group_shifts = tuple(int(g) for g in self.group_shifts)
-        if not self.group_shifts or any(not 1 <= g <= 6 for g in self.group_shifts):
-            raise ValueError(f"group_shifts must be 1 ... 6 (groups of 2 ... 64 keys), got {self.group_shifts}")
+        self.block_keys = int(self.block_keys)
+        if self.block_keys not in BLOCK_KEYS:
+            raise ValueError(f"block_keys must be one of {', '.join(map(str, BLOCK_KEYS))}, got {self.block_keys}")
+
+
+BLOCK_KEYS = tuple(1 << s for s in range(1, MAX_BLOCK_SHIFT + 1))
 
 
 def section_prefix(clip_count: int) -> bytes:
@@ -90,13 +94,15 @@ def curve_track(t: Track) -> CurveTrack:
                       ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=t.split)
 
 
-def serialize(motion: Motion, tracks: list[Track], group_shifts: tuple[int, ...] = GROUP_SHIFTS,
+def serialize(motion: Motion, tracks: list[Track], block_keys: int = DEFAULT_BLOCK_KEYS,
               written: WrittenTracks | None = None) -> bytes:
-    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 2); ``written``: the tracks
-    of this clip's previous payload, not packed again where unchanged."""
+    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 3), keys in blocks of
+    ``block_keys``; ``written``: the tracks of this clip's previous payload, not packed again
+    where unchanged."""
     rows, constants, animated = node_modes(motion, tracks)
     modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
-    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated], group_shifts, written)
+    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated],
+                   Blocks(block_keys.bit_length() - 1), written)
 
 
 JUMP_CM = 20.0  # a point moving this far in one frame is the capture jumping, not motion
@@ -127,7 +133,7 @@ class RMAFitter(KeyframeFitter):
         return np.unique([0, 1, self.frames - 1] if self.split else [0, self.frames - 1])
 
     def payload(self, tracks: list[Track]) -> bytes:
-        return serialize(self.motion, tracks, self.settings.group_shifts, self.written)
+        return serialize(self.motion, tracks, self.settings.block_keys, self.written)
 
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,

@@ -1,7 +1,8 @@
-"""The ``RMAL`` version 2 payload (docs/FORMAT.md): what the runtime samples in place.
+"""The ``RMAL`` payload (docs/FORMAT.md), versions 2 and 3: what the runtime samples in place.
 
-Every part of a track is laid out for direct reads, so that any key costs a few reads wherever
-it lies:
+Version 3 (what ``rma`` writes) codes each track's keys in blocks (:mod:`.rma_blocks`). Version 2
+(``rma-pca``'s curve sets, and ``rma`` before version 3) lays every part of a track out for
+direct reads, so that any key costs a few reads wherever it lies:
 
 - key times are cells of ``2**cell_shift`` frames (frame 0 and the last frame are cells of
   their own) written in unary, a one per key and a zero closing each cell, with a rank table
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..bitpack import fields_bytes, fields_length
+from .rma_blocks import DEFAULT_BLOCK_KEYS, descriptor_head, track_body
 
 PAYLOAD_HEADER = 32
 WIDTH_BITS = 4
@@ -271,10 +273,24 @@ def _key_values_bytes(kv: _KeyValues, q: np.ndarray, abits: np.ndarray) -> tuple
     return table, data
 
 
-def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple[bytes, bytes]:
-    """(descriptor, data) of one track: of the cell sizes (up to ``2**MAX_CELL_SHIFT`` frames)
-    and the group sizes ``2**group_shifts`` the ones with the fewest bytes (the first on a tie).
-    Every choice is sized before anything is packed, and only the chosen one is packed."""
+@dataclass(frozen=True)
+class Groups:
+    """Version 2's key layout: the group sizes ``2**shifts`` a track may take (the fewest bytes wins)."""
+
+    shifts: tuple[int, ...] = GROUP_SHIFTS
+    version = 2
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """Version 3's key layout: Rice-coded blocks of ``2**shift`` keys (:mod:`.rma_blocks`)."""
+
+    shift: int = DEFAULT_BLOCK_KEYS.bit_length() - 1
+    version = 3
+
+
+def _checked_keys(t: CurveTrack, frame_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The track's (frames, q) as int64, refused when they break the format's key rules."""
     q = np.asarray(t.q, dtype=np.int64)
     frames = np.asarray(t.frames, dtype=np.int64)
     K, d = q.shape
@@ -286,19 +302,40 @@ def _track_bytes(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...])
         raise ValueError("key frames must increase from 0 to the last frame")
     if K == 1 and frame_count != 1:
         raise ValueError("a track of a clip of several frames has at least two keys")
-    abits = signed_bits(q)
-    # The key times and the key values are sized independently: each choice is the smallest of its own.
-    kt = min(_key_times_each(frames, frame_count, tuple(range(MAX_CELL_SHIFT + 1))), key=lambda o: o.length)
-    kv = min(_key_values_each(q, abits, group_shifts), key=lambda o: o.length)
-    table, data = _key_values_bytes(kv, q, abits)
-    body = _key_times_bytes(kt, frame_count) + table + data
-    head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | kt.cell_shift << 1 | kv.group_shift << 3,
-                       kv.offset_bits, kt.in_cell, K, len(data), t.step)
-    head += bytes([int(b) for b in abits] + [0] * (4 - d))
+    return frames, q
+
+
+def _descriptor_tail(t: CurveTrack, abits: np.ndarray) -> bytes:
+    """A descriptor after its first 16 bytes (the same in both versions): anchor widths, the
+    reference rotation, a twist's axis and angle step."""
+    d = DIMS[t.kind]
+    tail = bytes([int(b) for b in abits] + [0] * (4 - d))
     if t.kind in (KIND_MRP, KIND_TWIST):
-        head += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)
+        tail += struct.pack("<3hH", *[int(v) for v in t.ref_codes], 0)
     if t.kind == KIND_TWIST:
-        head += struct.pack("<3hHf", *[int(v) for v in t.axis_codes], 0, t.angle_step)
+        tail += struct.pack("<3hHf", *[int(v) for v in t.axis_codes], 0, t.angle_step)
+    return tail
+
+
+def _track_bytes(t: CurveTrack, frame_count: int, layout: "Groups | Blocks") -> tuple[bytes, bytes]:
+    """(descriptor, data) of one track in ``layout``. Version 2: of the cell sizes (up to
+    ``2**MAX_CELL_SHIFT`` frames) and the group sizes the ones with the fewest bytes (the first
+    on a tie), every choice sized before anything is packed and only the chosen one packed."""
+    frames, q = _checked_keys(t, frame_count)
+    abits = signed_bits(q)
+    if isinstance(layout, Blocks):
+        offset_bits, data_bytes, table, data = track_body(frames, q, abits, frame_count, layout.shift)
+        head = descriptor_head(t.kind, t.split, layout.shift, offset_bits, len(q), data_bytes, t.step)
+        body = table + data
+    else:
+        # The key times and the key values are sized independently: each choice is the smallest of its own.
+        kt = min(_key_times_each(frames, frame_count, tuple(range(MAX_CELL_SHIFT + 1))), key=lambda o: o.length)
+        kv = min(_key_values_each(q, abits, layout.shifts), key=lambda o: o.length)
+        table, data = _key_values_bytes(kv, q, abits)
+        body = _key_times_bytes(kt, frame_count) + table + data
+        head = struct.pack("<BBBBIIf", t.kind, (1 if t.split else 0) | kt.cell_shift << 1 | kv.group_shift << 3,
+                           kv.offset_bits, kt.in_cell, len(q), len(data), t.step)
+    head += _descriptor_tail(t, abits)
     assert len(head) == DESC_SIZE[t.kind]
     return head, body
 
@@ -311,45 +348,45 @@ class WrittenTracks:
         self._last: dict[tuple, tuple[bytes, bytes]] = {}
 
     def write(self, tracks: list[CurveTrack], frame_count: int,
-              group_shifts: tuple[int, ...]) -> list[tuple[bytes, bytes]]:
+              layout: "Groups | Blocks") -> list[tuple[bytes, bytes]]:
         """Every track's (descriptor, data), those seen in the last call reused; only this
         call's are kept (each moved from the last call's as it is met: the two are not held
         whole at once)."""
         now: dict[tuple, tuple[bytes, bytes]] = {}
         parts = []
         for t in tracks:
-            key = _content(t, frame_count, group_shifts)
-            part = self._last.pop(key, None) or now.get(key) or _track_bytes(t, frame_count, group_shifts)
+            key = _content(t, frame_count, layout)
+            part = self._last.pop(key, None) or now.get(key) or _track_bytes(t, frame_count, layout)
             now[key] = part
             parts.append(part)
         self._last = now
         return parts
 
 
-def _content(t: CurveTrack, frame_count: int, group_shifts: tuple[int, ...]) -> tuple:
+def _content(t: CurveTrack, frame_count: int, layout: "Groups | Blocks") -> tuple:
     """Everything a track's bytes depend on."""
     q = np.asarray(t.q, dtype=np.int64)
     codes = [b"" if c is None else np.asarray(c, dtype=np.int64).tobytes() for c in (t.ref_codes, t.axis_codes)]
-    return (t.kind, t.split, float(t.step), float(t.angle_step), frame_count, group_shifts, q.shape,
+    return (t.kind, t.split, float(t.step), float(t.angle_step), frame_count, layout, q.shape,
             q.tobytes(), np.asarray(t.frames, dtype=np.int64).tobytes(), *codes)
 
 
 def payload(frame_count: int, node_modes: list[tuple[int, int, int]], constants: list[float],
-            tracks: list[CurveTrack], group_shifts: tuple[int, ...] = GROUP_SHIFTS,
+            tracks: list[CurveTrack], layout: "Groups | Blocks" = Groups(),
             written: WrittenTracks | None = None) -> bytes:
-    """The ``RMAL`` v2 payload of one clip: per node (rotation, translation, scale) modes (0
-    rest, 1 constant, 2 animated), the f32 constants they use in node order, the animated
-    tracks in node order (rotation, translation, scale); each track's keys grouped by the size
-    of ``2**group_shifts`` that takes the fewest bytes. ``written``: the tracks of the
-    previous payload of this clip, reused where unchanged (the bytes are the same)."""
-    if not group_shifts or any(not 1 <= g <= 6 for g in group_shifts):
+    """The ``RMAL`` payload of one clip, of ``layout.version``: per node (rotation, translation,
+    scale) modes (0 rest, 1 constant, 2 animated), the f32 constants they use in node order, the
+    animated tracks in node order (rotation, translation, scale), each track's keys laid out as
+    ``layout`` says. ``written``: the tracks of the previous payload of this clip, reused where
+    unchanged (the bytes are the same)."""
+    if isinstance(layout, Groups) and (not layout.shifts or any(not 1 <= g <= 6 for g in layout.shifts)):
         raise ValueError("group shifts must be 1 ... 6")
     nodes = len(node_modes)
     modes = bytes(rm | tm << 2 | sm << 4 for rm, tm, sm in node_modes)
     modes += bytes((-nodes) % 4)
     if written is None:
         written = WrittenTracks()
-    parts = written.write(tracks, frame_count, tuple(group_shifts))
+    parts = written.write(tracks, frame_count, layout)
     descs = b"".join(p[0] for p in parts)
     head_len = PAYLOAD_HEADER + len(modes) + 4 * len(constants) + len(descs)
     body = b"".join(p[1] for p in parts)

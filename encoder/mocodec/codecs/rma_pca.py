@@ -302,7 +302,7 @@ def set_coefficients(payload: bytes, k: int, x: np.ndarray, first: int = 0) -> n
     ``x`` (its nodes from ``first`` on), with the reference decoder."""
     nodes = struct.unpack_from("<I", payload, 8)[0]
     sk = _carrier(nodes)
-    trans = decode_payload(payload, sk, x)[1][:, first:]
+    trans = decode_payload(payload, sk, x, version=2)[1][:, first:]
     return trans.reshape(len(x), -1)[:, :k]
 
 

@@ -24,7 +24,7 @@ def _coefficients(data: bytes, at: int, x: np.ndarray) -> np.ndarray:
     size, _, nodes = struct.unpack_from("<III", data, at)
     sk = Skeleton([f"c{i}" for i in range(nodes)], np.full(nodes, -1), np.zeros((nodes, 3)),
                   [() for _ in range(nodes)], np.zeros(nodes, dtype=bool))
-    return decode_payload(data[at:at + size], sk, x)[1].reshape(len(x), -1)
+    return decode_payload(data[at:at + size], sk, x, version=2)[1].reshape(len(x), -1)
 
 
 def _unpack12(data: bytes, count: int) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""A reference decoder of the ``RMAL`` version 2 payload, written from docs/FORMAT.md.
+"""A reference decoder of the ``RMAL`` payload, versions 2 and 3, written from docs/FORMAT.md.
 
 For tests only: it checks the format document and the C runtime against each other (they
 must agree to float32 precision). It reads every key of every track in index order, the way
@@ -28,10 +28,61 @@ def _bits_for(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
-def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
+def _rice(data: bytes, bit: int, k: int) -> tuple[int, int]:
+    """The Rice code at ``bit`` with parameter ``k``: (value, the bit after it)."""
+    q = 0
+    while q < 16 and not read_bits(data, bit + q, 1):
+        q += 1
+    if q == 16:
+        return read_bits(data, bit + 16, 32), bit + 48
+    return q << k | read_bits(data, bit + q + 1, k), bit + q + 1 + k
+
+
+def _unzigzag(z: int) -> int:
+    return z >> 1 if z % 2 == 0 else -(z >> 1) - 1
+
+
+def _blocks_track(payload: bytes, pos: int, t: dict, frames: int) -> int:
+    """Version 3: a track's rows and Rice-coded blocks from ``pos``; fills ``t`` and returns
+    where the next track starts."""
+    d, K, B = t["d"], t["K"], 1 << t["block_shift"]
+    rows = (K + B - 1) // B
+    fb = _bits_for(frames - 1)
+    row_bits = fb + t["offset_bits"] + 5 * (d + 1) + sum(t["abits"])
+    table = payload[pos:pos + 4 * ((rows * row_bits + 31) // 32)] + bytes(8)
+    t["parts"] = dict(table=pos, row_bits=row_bits, rows=rows)
+    pos += 4 * ((rows * row_bits + 31) // 32)
+    t["parts"]["data"] = pos
+    data = payload[pos:pos + t["data_bytes"]] + bytes(8)
+    key_frames = np.zeros(K, dtype=np.int64)
+    q = np.zeros((K, d), dtype=np.int64)
+    for e in range(rows):
+        bit = e * row_bits
+        fields = []
+        for w in [fb, t["offset_bits"]] + [5] * (d + 1):
+            fields.append(read_bits(table, bit, w))
+            bit += w
+        j = e * B
+        key_frames[j] = fields[0]
+        for c in range(d):
+            q[j, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
+            bit += t["abits"][c]
+        at, k = fields[1], fields[2:]
+        for j in range(e * B + 1, min(K, e * B + B)):
+            gap, at = _rice(data, at, k[0])
+            key_frames[j] = key_frames[j - 1] + gap + 1
+            for c in range(d):
+                z, at = _rice(data, at, k[1 + c])
+                q[j, c] = q[j - 1, c] + _unzigzag(z)
+    t.update(frames=key_frames, q=q)
+    return pos + t["data_bytes"]
+
+
+def decode_keys(payload: bytes, version: int = 3) -> tuple[dict, list[dict]]:
     """The payload's header fields and, per track, its kind, key frames (K,), lattice
     integers (K, d), steps (d,), reference and axis, and where its parts start (``parts``:
-    byte offsets of the bitmap, rank table, group table and data area)."""
+    byte offsets; version 2: the bitmap, rank table, group table and data area; version 3:
+    the row table and data area)."""
     size, frames, nodes, ntracks, nconst = struct.unpack_from("<IIIII", payload)
     pos = 32
     modes = list(payload[pos:pos + nodes])
@@ -52,12 +103,16 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
             axis = a / np.linalg.norm(a)
             steps[0] = struct.unpack_from("<f", payload, pos + 36)[0]
         descs.append(dict(kind=kind, d=d, split=bool(flags & 1), cell_shift=(flags >> 1) & 3,
-                          group_shift=(flags >> 3) & 7, offset_bits=offset_bits, in_cell_bits=in_cell_bits, K=K,
+                          group_shift=(flags >> 3) & 7, block_shift=(flags >> 1) & 7,
+                          offset_bits=offset_bits, in_cell_bits=in_cell_bits, K=K,
                           data_bytes=data_bytes,
                           steps=steps, abits=abits, ref=ref, axis=axis))
         pos += _DESC_SIZE[kind]
     pos = (pos + 3) // 4 * 4
     for t in descs:
+        if version == 3:
+            pos = _blocks_track(payload, pos, t, frames)
+            continue
         d, K, G = t["d"], t["K"], 1 << t["group_shift"]
         # Key times: the unary cells, the rank table (not needed reading in order), the places.
         C = 1 << t["cell_shift"]
@@ -122,10 +177,10 @@ def decode_keys(payload: bytes) -> tuple[dict, list[dict]]:
     return header, descs
 
 
-def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray) -> tuple[np.ndarray, ...]:
+def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray, version: int = 3) -> tuple[np.ndarray, ...]:
     """Local rotations (len(x), N, 4), translations and scales (len(x), N, 3) at frame
-    positions x."""
-    header, descs = decode_keys(payload)
+    positions x of a version ``version`` payload."""
+    header, descs = decode_keys(payload, version)
     x = np.asarray(x, dtype=np.float64)
     n, nodes = len(x), header["nodes"]
     values = []
