@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..bitpack import fields_bytes, fields_length
-from .rma_blocks import DEFAULT_BLOCK_KEYS, descriptor_head, track_body
+from .rma_blocks import DEFAULT_BLOCK_KEYS, bits_for, descriptor_head, track_body
 
 PAYLOAD_HEADER = 32
 WIDTH_BITS = 4
@@ -84,11 +84,6 @@ def _bit_length(x: np.ndarray) -> np.ndarray:
     if np.any(big):
         out[big] = [int(v).bit_length() for v in x[big]]
     return out
-
-
-def bits_for(n: int) -> int:
-    """Bits that hold every value 0 ... n (at least 1), as the runtime computes them."""
-    return max(1, int(n).bit_length())
 
 
 def cell_count(frame_count: int, cell_shift: "int | np.ndarray") -> "int | np.ndarray":
