@@ -3,6 +3,7 @@ non-zero exit, never a traceback."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -239,9 +240,17 @@ def test_a_failed_write_leaves_the_previous_file(tmp_path, sample_paths, monkeyp
 def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths, signame, code, word):
     """SIGTERM (a build farm's timeout) exits 143, Ctrl-C 130, with the previous output intact."""
     import signal
+    # A clip of 80 times a sample's frames: its encode takes many seconds, so it cannot end
+    # before the signal arrives, however late a loaded machine lets the test run.
+    head, frames = sample_paths[2].read_text().split("Frame Time:", 1)
+    time_line, body = frames.split("\n", 1)
+    lines = body.strip().splitlines()
+    long_clip = tmp_path / "long.bvh"
+    long_clip.write_text(re.sub(r"Frames:\s*\d+", f"Frames: {80 * len(lines)}", head)
+                         + "Frame Time:" + time_line + "\n" + "\n".join(lines * 80) + "\n")
     out = tmp_path / "a.mcd"
     out.write_bytes(b"previous asset")
-    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", *map(str, sample_paths),
+    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", str(long_clip),
                           "-o", str(out), "-t", "0.05"], stderr=subprocess.PIPE, text=True)
     seen = []
     for line in p.stderr:  # wait until encoding has started (imports done, handler set)
@@ -253,7 +262,7 @@ def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths
     assert p.wait(timeout=60) == code, "".join(seen) + rest
     assert word in rest and "Traceback" not in rest
     assert out.read_bytes() == b"previous asset"
-    assert sorted(q.name for q in tmp_path.iterdir()) == ["a.mcd"]
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["a.mcd", "long.bvh"]
 
 
 # ------------------------------------------------------- names that steer a path or a terminal

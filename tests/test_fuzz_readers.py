@@ -3,6 +3,7 @@ check catches a reader that breaks it, and a short atheris run of each target en
 The long runs are `make fuzz-readers FUZZ_SECONDS=N`."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -55,4 +56,6 @@ def test_a_short_fuzz_run_ends_clean(reader: str, tmp_path: Path) -> None:
                         "-rss_limit_mb=1024", f"-artifact_prefix={tmp_path}/", str(corpus)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
-    assert "Done 400 runs" in r.stderr
+    # libFuzzer can end a little past -runs (a loaded CI run said "Done 421 runs").
+    done = re.search(r"Done (\d+) runs", r.stderr)
+    assert done and 400 <= int(done.group(1)) < 600, r.stderr[-3000:]

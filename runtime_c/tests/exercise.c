@@ -149,10 +149,20 @@ static int exercise_short_scratch(const mcd_asset* a, uint32_t c, const mcd_clip
 /* Clip `c` of the validated open `a` (sampled with `shared`, the asset's scratch, which other
  * clips use too) and of the prevalidated open `pre` (sampled with a scratch of the clip's own
  * size): both must give the same bytes. */
+/* The sample flags, and the 5 combinations that hold every pair of them on and off. */
+#define ALL_FLAGS (MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS)
+static const uint32_t k_pairwise[5] = {
+    0u,
+    MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS,
+    MCD_SAMPLE_WORLD | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS,
+    MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_CONTACTS,
+    MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST,
+};
+
 static int exercise_clip(const mcd_asset* a, const mcd_asset* pre, size_t asset_size, uint32_t c, void* shared,
-                         mcd_transform* pose, mcd_transform* pose2, char* why, size_t why_size) {
+                         mcd_transform* pose, mcd_transform* pose2, int pairwise, char* why, size_t why_size) {
     mcd_clip_info ci;
-    uint32_t found = UINT32_MAX, flags;
+    uint32_t found = UINT32_MAX, flags, k, combos = pairwise ? 5u : ALL_FLAGS + 1u;
     size_t t;
     mcd_result r = mcd_get_clip_info(a, c, &ci);
     float times[8];
@@ -187,7 +197,8 @@ static int exercise_clip(const mcd_asset* a, const mcd_asset* pre, size_t asset_
     for (t = 0; t < sizeof times / sizeof times[0] && result == MCD_EXERCISE_SAMPLED; ++t) {
         /* A valid asset may have a huge duration; time arithmetic above can then overflow. */
         if (!finite_all(&times[t], 1)) continue;
-        for (flags = 0; flags <= (MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS); ++flags) {
+        for (k = 0; k < combos; ++k) {
+            flags = pairwise ? k_pairwise[k] : k;
             r = mcd_sample(a, c, times[t], flags, pose, ci.node_count, shared);
             if (r != MCD_OK) {
                 result = broken(why, why_size, "clip %u t=%g flags=%u: sample gave %d", c, times[t], flags, (int)r);
@@ -212,8 +223,8 @@ static int exercise_clip(const mcd_asset* a, const mcd_asset* pre, size_t asset_
     return result;
 }
 
-static int exercise_opened(const mcd_asset* asset, const mcd_asset* pre, size_t size, uint32_t max_clips, char* why,
-                           size_t why_size) {
+static int exercise_opened(const mcd_asset* asset, const mcd_asset* pre, size_t size, uint32_t max_clips, int pairwise,
+                           char* why, size_t why_size) {
     size_t scratch_size = mcd_scratch_size(asset);
     void* scratch = NULL;
     mcd_transform *pose, *pose2;
@@ -233,7 +244,7 @@ static int exercise_opened(const mcd_asset* asset, const mcd_asset* pre, size_t 
         mcd_clip_info ci;
         /* The asset's scratch is the largest clip's (mocodec.h, mcd_scratch_size). */
         if (mcd_get_clip_info(asset, c, &ci) == MCD_OK && ci.scratch_size > largest) largest = ci.scratch_size;
-        if (c < max_clips) result = exercise_clip(asset, pre, size, c, scratch, pose, pose2, why, why_size);
+        if (c < max_clips) result = exercise_clip(asset, pre, size, c, scratch, pose, pose2, pairwise, why, why_size);
     }
     if (result == MCD_EXERCISE_SAMPLED && largest != scratch_size)
         result = broken(why, why_size, "mcd_scratch_size %lu, largest clip need %u", (unsigned long)scratch_size, largest);
@@ -245,8 +256,8 @@ static int exercise_opened(const mcd_asset* asset, const mcd_asset* pre, size_t 
     return result;
 }
 
-int mcd_exercise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips,
-                 char* why, size_t why_size) {
+static int exercise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips, int pairwise,
+                    char* why, size_t why_size) {
     mcd_asset asset, pre;
     mcd_result v = mcd_validate(data, size, validate_flags), o;
     if (why && why_size) why[0] = 0;
@@ -260,5 +271,15 @@ int mcd_exercise(const void* data, size_t size, uint32_t validate_flags, uint32_
     /* The bytes passed mcd_validate: the one case MCD_OPEN_PREVALIDATED may be used. */
     o = mcd_open(data, size, validate_flags | MCD_OPEN_PREVALIDATED, &pre);
     if (o != MCD_OK) return broken(why, why_size, "validated bytes: prevalidated open gave %d", (int)o);
-    return exercise_opened(&asset, &pre, size, max_clips, why, why_size);
+    return exercise_opened(&asset, &pre, size, max_clips, pairwise, why, why_size);
+}
+
+int mcd_exercise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips,
+                 char* why, size_t why_size) {
+    return exercise(data, size, validate_flags, max_clips, 0, why, why_size);
+}
+
+int mcd_exercise_pairwise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips,
+                          char* why, size_t why_size) {
+    return exercise(data, size, validate_flags, max_clips, 1, why, why_size);
 }
