@@ -252,8 +252,13 @@ def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths
                          + "Frame Time:" + time_line + "\n" + "\n".join(lines * 80) + "\n")
     out = tmp_path / "a.mcd"
     out.write_bytes(b"previous asset")
-    p = subprocess.Popen([sys.executable, "-m", "mocodec", "encode", str(long_clip),
-                          "-o", str(out), "-t", "0.05", "-j", "1"], stderr=subprocess.PIPE, text=True)
+    # Ctrl-C's default handling in the child, as a terminal gives it: a test run in a shell's
+    # background job (CI's workers) inherits SIGINT ignored, and an ignored signal stays ignored.
+    default_sigint = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                      "os.execv(sys.argv[1], sys.argv[1:])")
+    p = subprocess.Popen([sys.executable, "-c", default_sigint, sys.executable, "-m", "mocodec", "encode",
+                          str(long_clip), "-o", str(out), "-t", "0.05", "-j", "1"],
+                         stderr=subprocess.PIPE, text=True)
     seen = []
     for line in p.stderr:  # wait until encoding has started (imports done, handler set)
         seen.append(line)
