@@ -146,9 +146,6 @@ static int exercise_short_scratch(const mcd_asset* a, uint32_t c, const mcd_clip
     return result;
 }
 
-/* Clip `c` of the validated open `a` (sampled with `shared`, the asset's scratch, which other
- * clips use too) and of the prevalidated open `pre` (sampled with a scratch of the clip's own
- * size): both must give the same bytes. */
 /* The sample flags, and the 5 combinations that hold every pair of them on and off. */
 #define ALL_FLAGS (MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST | MCD_SAMPLE_CONTACTS)
 static const uint32_t k_pairwise[5] = {
@@ -159,6 +156,9 @@ static const uint32_t k_pairwise[5] = {
     MCD_SAMPLE_WORLD | MCD_SAMPLE_LOOP | MCD_SAMPLE_NEAREST,
 };
 
+/* Clip `c` of the validated open `a` (sampled with `shared`, the asset's scratch, which other
+ * clips use too) and of the prevalidated open `pre` (sampled with a scratch of the clip's own
+ * size): both must give the same bytes. */
 static int exercise_clip(const mcd_asset* a, const mcd_asset* pre, size_t asset_size, uint32_t c, void* shared,
                          mcd_transform* pose, mcd_transform* pose2, int pairwise, char* why, size_t why_size) {
     mcd_clip_info ci;

@@ -29,7 +29,7 @@ int mcd_exercise(const void* data, size_t size, uint32_t validate_flags, uint32_
 
 /* As mcd_exercise, sampling with 5 of the 16 flag combinations instead of all: every pair of
  * flags in each of its 4 on/off states (a strength-2 covering array). The corruption sweep
- * samples tens of thousands of assets under ASan; this keeps its cost a third. */
+ * samples tens of thousands of assets under ASan; this halves its cost or better. */
 int mcd_exercise_pairwise(const void* data, size_t size, uint32_t validate_flags, uint32_t max_clips,
                           char* why, size_t why_size);
 
