@@ -359,6 +359,51 @@ def test_process_map_runs_in_the_workers_with_one_blas_thread(monkeypatch):
     assert os.environ["OPENBLAS_NUM_THREADS"] == "7"  # this process's setting is given back
 
 
+@pytest.fixture
+def default_sigint():
+    """Ctrl-C handled as a terminal's foreground process does (a shell's background job, as CI
+    runs pytest, inherits it ignored)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="no signal masks on this platform")
+def test_a_ctrl_c_while_workers_start_is_not_lost(default_sigint):
+    """Workers start with Ctrl-C held off; a Ctrl-C meanwhile used to be ignored by the parent
+    too, so the encode went on. It now arrives when the workers have started."""
+    from mocodec.bake.runners import _starting_workers
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with _starting_workers():
+            # To this thread: a signal sent to the process may go to another thread, whose
+            # handler would raise here at once (not lost either).
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+            time.sleep(0.05)
+            reached.append("end of the start-up")
+        time.sleep(1.0)  # a Python handler runs between bytecodes: long before this ends
+        reached.append("after")
+    assert reached == ["end of the start-up"]
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())
+
+
+def _sigint_state(_: object) -> tuple[bool, bool]:
+    """(SIGINT blocked, SIGINT ignored) in this worker, from /proc."""
+    fields = dict(line.split(":\t", 1) for line in Path("/proc/self/status").read_text().splitlines()
+                  if ":\t" in line)
+    bit = 1 << (signal.SIGINT - 1)
+    return bool(int(fields["SigBlk"], 16) & bit), bool(int(fields["SigIgn"], 16) & bit)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal state from Linux's /proc")
+def test_workers_ignore_ctrl_c_and_the_parent_does_not(default_sigint):
+    with ProcessRunner(2) as r:
+        states = r.map(_sigint_state, range(4))
+    assert all(ignored for _, ignored in states), states  # the parent stops the workers
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())
+
+
 class CountingRunner(ProcessRunner):
     """A process runner that counts the items its ``map`` spread."""
 

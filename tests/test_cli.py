@@ -242,8 +242,7 @@ def test_a_signal_while_encoding_leaves_the_previous_file(tmp_path, sample_paths
     import signal
     # A clip of 80 times a sample's frames: its encode takes many seconds, so it cannot end
     # before the signal arrives, however late a loaded machine lets the test run. One job: the
-    # encode runs in this process, so the signal cannot fall into the moment worker processes
-    # start, when Ctrl-C is ignored (mocodec.bake.runners._starting_workers).
+    # encode runs in this process (a Ctrl-C while workers start is tests/test_bake.py's).
     head, frames = sample_paths[2].read_text().split("Frame Time:", 1)
     time_line, body = frames.split("\n", 1)
     lines = body.strip().splitlines()

@@ -245,22 +245,31 @@ a BLAS pool in each, spinning for a core, made rma-pca's bake 5x slower on two).
 @contextlib.contextmanager
 def _starting_workers() -> Iterator[None]:
     """Around the submits that start worker processes: each starts with one BLAS thread, and
-    with Ctrl-C ignored (a process inherits it, so a Ctrl-C while a worker is still importing
-    finds it ignoring too: the initializer runs only after the imports)."""
+    with Ctrl-C held off until its initializer ignores it (a Ctrl-C while a worker is still
+    importing would print that worker's own traceback).
+
+    The main thread blocks SIGINT here rather than ignoring it: a started process inherits the
+    blocked mask (fork and exec keep it), and in this process a Ctrl-C that comes meanwhile
+    stays pending and is delivered when the block ends, where an ignored one was lost."""
     saved = {name: os.environ.get(name) for name in BLAS_THREADS}
     os.environ.update({name: "1" for name in BLAS_THREADS})
     main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    block = main and hasattr(signal, "pthread_sigmask")
+    # Windows has no signal masks: there the old way, Ctrl-C ignored for the moment.
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main and not block else None
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if block else None
     try:
         yield
     finally:
-        if main:
-            signal.signal(signal.SIGINT, previous)
         for name, value in saved.items():
             if value is None:
                 os.environ.pop(name, None)
             else:
                 os.environ[name] = value
+        if block:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # a pending Ctrl-C arrives here
+        elif main:
+            signal.signal(signal.SIGINT, previous)
 
 
 class ProcessRunner(Runner):
