@@ -154,7 +154,8 @@ static MCD_HOT_INLINE void step_d(const uint8_t* data, reader* R, const key* fro
     R->r++;
 }
 
-static void step(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+/* Inline, as next_key: playback calls them once per key of a track. */
+static MCD_HOT_INLINE void step(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
     if (t->dims == 3u)
         step_d(p + t->data, R, from, to, 3u);
     else
@@ -162,7 +163,7 @@ static void step(const uint8_t* p, const track_layout* t, reader* R, const key* 
 }
 
 /* The key after `from`, into the next block when the reader's ends; 0 past the last key. */
-static int next_key(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+static MCD_HOT_INLINE int next_key(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
     if (R->r + 1u < R->n) {
         step(p, t, R, from, to);
         return 1;
@@ -250,6 +251,8 @@ static void locate(const uint8_t* p, track_state* ts, float x) {
 static void advance(const uint8_t* p, track_state* ts) {
     key k;
     uint32_t c;
+    /* memmove: copies through locals took fewer instructions but timed 10 % slower at 0.02 cm
+     * (their vector loads of the slot just stored wait for the stores). */
     memmove(ts->W.t, ts->W.t + 1, 3u * sizeof ts->W.t[0]);
     memmove(ts->W.v[0], ts->W.v[1], 3u * sizeof ts->W.v[0]);
     ts->W.i++;
