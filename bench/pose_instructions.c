@@ -1,14 +1,14 @@
-/* The RMAL v2 side of the v3 study's instruction counts (docs/RMAL_V3_STUDY.md): poses of an
- * asset through the runtime (mcd_sample), under callgrind, in the sequences the v3 prototypes
- * (bench/rmal_v3_proto.c, bench/rmal_v3_eb.c) replay.
+/* Samples every pose of an .mcd asset through the C runtime (mcd_sample) in one of a few fixed
+ * sequences, for counting instructions per pose under valgrind callgrind
+ * (bench/pose_instructions.sh does the counting and the arithmetic).
  *
- *   rmal_v3_poses ASSET.mcd MODE [world]   MODE: none (open only), seq (every frame of every
- *                                          clip), step2 (every other frame), rand (as many
- *                                          uniform random times as frames, xorshift64*),
- *                                          back (every frame, last first), tick (8 instances
- *                                          of different clips advanced by 1/60 s in turn)
- *   HASH=1 rmal_v3_poses ...               also prints a hash of every pose's bytes, so two
- *                                          builds can be shown to give the same bits
+ *   pose_instructions ASSET.mcd MODE [world]   MODE: none (open only), seq (every frame of every
+ *                                              clip), step2 (every other frame), rand (as many
+ *                                              uniform random times as frames, xorshift64*),
+ *                                              back (every frame, last first), tick (8 instances
+ *                                              of different clips advanced by 1/60 s in turn)
+ *   HASH=1 pose_instructions ...               also prints a hash of every pose's bytes, so two
+ *                                              builds can be shown to give the same bits
  *
  * Prints "MODE poses N hash H". Trusts its input (a bench tool, not a reader). */
 #include <stdint.h>
@@ -46,7 +46,7 @@ static void mix(const mcd_transform* pose, uint32_t nodes) {
     }
 }
 
-/* xorshift64*, top 53 bits as a double in [0, 1) (the seed the prototypes use too) */
+/* xorshift64*, top 53 bits as a double in [0, 1); the fixed seed keeps runs comparable */
 static double uniform(uint64_t* s) {
     *s ^= *s >> 12;
     *s ^= *s << 25;
@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
     uint64_t seed = 0x9E3779B97F4A7C15ull;
     long poses = 0;
     if (argc < 3) {
-        fprintf(stderr, "usage: rmal_v3_poses ASSET.mcd none|seq|step2|rand|back|tick [world]\n");
+        fprintf(stderr, "usage: pose_instructions ASSET.mcd none|seq|step2|rand|back|tick [world]\n");
         return 2;
     }
     data = read_file(argv[1], &size);
