@@ -5,7 +5,7 @@
 
 The writer codes each track's keys in blocks of ``block_keys`` keys (32 by default) and puts
 keys on cells of ``key_grid`` frames (4 at 0.25 cm and up, else 1); docs/FORMAT.md, RMAL
-version 3. A block costs a row (its first key whole, where its codes start, their Rice
+version 4. A block costs a row (its first key whole, where its codes start, their Rice
 parameters), so smaller blocks take more bytes, but a random access decodes half a block on
 average; keys on a coarser grid of cells need more keys but have more regular gaps. This
 bench encodes the dev set as one library once per choice (``mocodec eval -O ...``, cached in

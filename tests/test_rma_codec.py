@@ -1,8 +1,8 @@
-"""The rma codec (RMAL version 3, sampled in place): a library in one RMAL section, the
+"""The rma codec (RMAL version 4, sampled in place): a library in one RMAL section, the
 tolerance promise on every frame, C vs Python reference agreement, sequential = random =
 backward access bit for bit, each clip's bytes where its clip info says, and bad bytes
-rejected at open or decoded finite; assets of RMAL version 2 still read. (Synthetic motion
-shapes run through it in test_spline.py.)"""
+rejected at open or decoded finite; assets of RMAL versions 2 and 3 still read. (Synthetic
+motion shapes run through it in test_spline.py.)"""
 from __future__ import annotations
 
 import struct
@@ -11,8 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mocodec.codecs.rma_reference import decode_keys, decode_payload
+from mocodec.bitpack import read_bits
+from mocodec.codecs.rma_reference import _blocks_track, decode_keys, decode_payload
 from mocodec.codecs.rma import section_prefix
+from mocodec.codecs.rma_blocks import SLOPE, ZERO_STREAM, track_body
 from mocodec.decode import skeleton_from_asset
 from mocodec.encode import EncodeError, encode_motions
 from mocodec.io import read_bvh
@@ -60,6 +62,8 @@ def _payloads(asset_bytes: bytes) -> list[tuple[int, bytes]]:
 
 
 RMAL2_GOLDEN = Path(__file__).resolve().parent / "golden" / "v2" / "rma_rmal2_library.mcd"
+RMAL3_GOLDENS = [Path(__file__).resolve().parent / "golden" / "v2" / f"rma_rmal3_{n}.mcd"
+                 for n in ("library", "rest_pose", "09_11_dense")]
 
 
 @pytest.fixture(scope="module")
@@ -157,13 +161,27 @@ def test_c_runtime_and_python_reference_agree(library):
     _assert_c_matches_reference(result, motions)
 
 
+def _row_fields(payload: bytes, t: dict) -> np.ndarray:
+    """A decoded track's row fields (rows, streams): gaps, then each component."""
+    frames = struct.unpack_from("<I", payload, 4)[0]
+    fb = max(1, (frames - 1).bit_length())
+    table = payload[t["parts"]["table"]:] + bytes(8)
+    return np.array([[read_bits(table, e * t["parts"]["row_bits"] + fb + t["offset_bits"] + 5 * c, 5)
+                      for c in range(t["d"] + 1)] for e in range(t["parts"]["rows"])])
+
+
 def test_dense_keys_decode_alike_in_c_and_python(sample_paths):
-    # Tight tolerances give dense keys (gaps of one frame), wide differences and short last blocks.
+    # Tight tolerances give dense keys (gaps of one frame), wide differences and short last
+    # blocks; and version 4's slope predictor and streams of zeros (gaps all one frame).
     motions = [read_bvh(p) for p in sample_paths[:1]]
     result = _encode(motions, 0.05)
     (_, payload), = _payloads(result.asset)
     _, tracks = decode_keys(payload)
     assert any(np.any(np.diff(t["frames"]) == 1) for t in tracks)
+    fields = np.concatenate([_row_fields(payload, t)[:, 1:] for t in tracks]).ravel()
+    gaps = np.concatenate([_row_fields(payload, t)[:, 0] for t in tracks])
+    assert np.any(fields & SLOPE) and np.any(fields & ~SLOPE & 15 != ZERO_STREAM)
+    assert np.any(gaps == ZERO_STREAM) and not np.any(gaps & SLOPE)
     _assert_c_matches_reference(result, motions)
     assert _error_cm(Asset(result.asset), motions[0]).max() <= 0.05
 
@@ -328,18 +346,75 @@ def test_inconsistent_version_2_payloads_are_rejected_at_open(rmal2_golden):
     _assert_each_case_rejected(asset_bytes, start, payload, cases)
 
 
-def test_version_2_assets_decode_as_the_reference_says(rmal2_golden):
-    """An asset written before version 3: the C runtime samples it as the Python reference of
-    version 2 decodes it, between frames too."""
-    asset = Asset(rmal2_golden)
-    for (_, payload), info in zip(_payloads(rmal2_golden), asset.clips):
+def _assert_decodes_as_the_reference(data: bytes, version: int) -> None:
+    """The C runtime samples every clip of an asset as the Python reference of RMAL version
+    ``version`` decodes it, at quarter frames."""
+    asset = Asset(data)
+    for (_, payload), info in zip(_payloads(data), asset.clips):
         sk = _golden_skeleton(asset, info.index)
         x = np.linspace(0, info.frame_count - 1, 4 * info.frame_count - 3)
-        rot_py, trans_py, _ = decode_payload(payload, sk, x, version=2)
+        rot_py, trans_py, _ = decode_payload(payload, sk, x, version=version)
         poses = asset.sample_times(info.index, (x / info.frame_rate).astype(np.float32)).astype(np.float64)
         sign = np.sign(np.sum(poses[..., :4] * rot_py, axis=-1, keepdims=True))
         assert np.abs(poses[..., :4] - sign * rot_py).max() <= 1e-5
         assert np.abs(poses[..., 4:7] - trans_py).max() <= 1e-5 * max(1.0, np.abs(trans_py).max())
+
+
+def test_version_2_assets_decode_as_the_reference_says(rmal2_golden):
+    """An asset written before version 3: the C runtime samples it as the Python reference of
+    version 2 decodes it, between frames too."""
+    _assert_decodes_as_the_reference(rmal2_golden, 2)
+
+
+@pytest.mark.parametrize("path", RMAL3_GOLDENS, ids=lambda p: p.stem)
+def test_version_3_assets_decode_as_the_reference_says(path):
+    """An asset written before version 4: the C runtime samples it as the Python reference of
+    version 3 decodes it, between frames too."""
+    _assert_decodes_as_the_reference(path.read_bytes(), 3)
+
+
+def _blocks_round_trip(frames: np.ndarray, q: np.ndarray, shift: int) -> tuple[dict, np.ndarray]:
+    """A track's keys written as version 4 blocks and read back by the reference: (the decoded
+    track, its row fields)."""
+    abits = np.array([max(1, int(np.abs(q[:, c]).max()).bit_length() + 1) for c in range(q.shape[1])])
+    offset_bits, data_bytes, table, data = track_body(frames, q, abits, int(frames[-1]) + 1, shift)
+    payload = table + data
+    t = dict(d=q.shape[1], K=len(q), block_shift=shift, offset_bits=offset_bits, abits=list(abits),
+             data_bytes=data_bytes)
+    _blocks_track(payload, 0, t, int(frames[-1]) + 1, 4)
+    header = struct.pack("<II", 0, int(frames[-1]) + 1)  # what _row_fields reads of a payload
+    t["parts"]["table"] += len(header)
+    return t, _row_fields(header + payload, t)
+
+
+def test_blocks_choose_a_predictor_per_block_and_component():
+    """A component that moves evenly takes the slope (its residuals are 0 after a block's first
+    step), one that stands still a stream of zeros, one that jitters the key before; every key
+    comes back as written."""
+    K = 64
+    frames = np.arange(K, dtype=np.int64)
+    jitter = np.random.default_rng(3).integers(-40, 40, K)
+    q = np.column_stack([7 * np.arange(K) - 100, np.full(K, 12), jitter]).astype(np.int64)
+    t, fields = _blocks_round_trip(frames, q, 4)
+    assert np.array_equal(t["frames"], frames) and np.array_equal(t["q"], q)
+    assert np.all(fields[:, 0] == ZERO_STREAM)  # keys a frame apart: no gap codes
+    assert np.all(fields[:, 1] & SLOPE)
+    assert np.all(fields[:, 2] == ZERO_STREAM)
+    assert not np.any(fields[:, 3] & SLOPE) and not np.any(fields[:, 3] == ZERO_STREAM)
+
+
+def test_a_slope_residual_past_32_bits_takes_the_key_before():
+    """A ramp (the slope's) that ends in a swing from -(2^30 - 1) to 2^30 - 1: the slope's
+    residual there would need 33 bits, past an escape, so the block takes the key before as its
+    predictor though the slope would be shorter; the keys come back."""
+    top = (1 << 30) - 1
+    q = np.array([1000 * i for i in range(30)] + [-top, top, 5], dtype=np.int64)[:, None]
+    frames = np.arange(len(q), dtype=np.int64)
+    t, fields = _blocks_round_trip(frames, q, 5)
+    assert np.array_equal(t["q"], q)
+    assert not fields[0, 1] & SLOPE
+    t, fields = _blocks_round_trip(frames[:30], q[:30], 5)  # the ramp alone takes the slope
+    assert fields[0, 1] & SLOPE
 
 
 @pytest.fixture(scope="module")

@@ -11,9 +11,10 @@
  * the other targets' business (an asset written out, below, carries its right CRC).
  *
  * Input: byte 0 picks the template (modulo their count, in file-name order), the rest is the
- * section, read as the version of the template's section (rma's templates hold RMAL version 2
- * or 3: the codec's reader of that version checks and sizes it). The payload ranges follow the section's own layout as far as it states one (an RMAL
- * payload starts with its size; an RMAP section says where its clip payloads start); otherwise
+ * section, read as the version of the template's section (rma's templates hold RMAL version 2,
+ * 3 or 4: the codec's reader of that version checks and sizes it). The payload ranges follow
+ * the section's own layout as far as it states one (an RMAL payload starts with its size; an
+ * RMAP section says where its clip payloads start); otherwise
  * each payload keeps the template's size. The last payload always runs to the section's end,
  * so inserting or removing bytes keeps the framing. A clip record's scratch_bytes is what the
  * codec computes for the new payload (as mcd_offline_clip_scratch does for the encoder),

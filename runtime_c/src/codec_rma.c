@@ -1,20 +1,32 @@
 /* Codec `rma`: per-track Catmull-Rom keys, sampled in place from the asset's bytes
- * (docs/FORMAT.md, RMAL version 3; version 2 is rmal_v2.c, the payload around the tracks and
- * the window's curve rmal_payload.c).
+ * (docs/FORMAT.md, RMAL versions 4 and 3; version 2 is rmal_v2.c, the payload around the
+ * tracks and the window's curve rmal_payload.c).
  *
  * A track's keys come in blocks of 2^b. A block's row, at a fixed bit stride, holds its first
  * key whole (frame and lattice integers), where its codes start and their Rice parameters;
  * every later key is its frame gap and its differences from the key before, Rice coded (one
- * 64-bit load and a count of trailing zeros a code). A random access searches the rows by
- * frame and decodes on from its block's first key to the keys around x; playback keeps a
- * reader per track and decodes one key per key interval, a step forward of a few keys (a game
- * tick) just those keys. */
+ * 64-bit load and a count of trailing zeros a code). Version 4 adds, per block and stream, a
+ * stream of zeros with no codes and, per component, a slope predictor (the difference before
+ * plus the code). A random access searches the rows by frame and decodes on from its block's
+ * first key to the keys around x; playback keeps a reader per track and decodes one key per
+ * key interval, a step forward of a few keys (a game tick) just those keys.
+ *
+ * Both versions share every function; V (3 or 4) is a constant in each caller, so each
+ * version's code is what it would be alone. */
+#include <stddef.h>
 #include <string.h>
 
 #include "rmal_payload.h"
 
 #define MAX_BLOCK_SHIFT 6u
 #define K_BITS 5u       /* a Rice parameter in a row */
+/* Version 4: a row's 5-bit field holds k in bits 0-3 (15: the block's values of the stream are
+ * all zero and have no codes) and, for a component, the slope predictor in bit 4. The reader
+ * keeps k with these two flags. */
+#define K_ZERO_FIELD 15u
+#define K_SLOPE_FIELD 16u
+#define K_ZERO 0x20u
+#define K_SLOPE 0x40u
 #define RICE_CAP 16u    /* 16 zeros: an escape, the value follows in 32 raw bits */
 #define RICE_RAW 32u
 /* Bit positions in a track's data area are 32-bit (a row's offset is at most 32 bits), and a
@@ -33,9 +45,12 @@ typedef struct track_layout {
     float step[4];
 } track_layout;
 
-/* A decoded key: its frame and lattice integers (components past the track's: 0). */
+/* A decoded key: its frame and lattice integers (components past the track's: 0); version 4:
+ * d, its differences from the key before (0 at a block's first key), which the slope predicts
+ * the next key's from. */
 typedef struct key {
     int64_t q[4];
+    int64_t d[4];
     uint32_t frame;
 } key;
 
@@ -44,24 +59,29 @@ typedef struct key {
  * gaps, then each component) the block's Rice parameter. */
 typedef struct reader {
     uint32_t bit, e, r, n;
-    uint8_t k[5];
+    uint8_t k[5];   /* version 4: with K_ZERO and K_SLOPE */
     uint8_t at_end; /* playback: the window's slot 2 is the last key */
     uint8_t pad[2];
 } reader;
 
 /* A track in the scratch: its window and curve (rmal_payload.h), its layout, the reader and
- * the key it stands at (the window's slot 3, unless at_end). */
+ * the key it stands at (the window's slot 3, unless at_end); version 4 also that key's
+ * differences (|d| < 2^31: both keys are validated). A version 3 track ends before d3. */
 typedef struct track_state {
     mcd_rmal_curve W;
     track_layout L;
     reader R;
     uint32_t frame3;
     int32_t q3[4];
+    int32_t d3[4];
 } track_state;
 
-/* The scratch size is part of the format (docs/FORMAT.md, RMAL version 3 "Sampling"): changing
- * this structure is a new section version. Plain 32-bit fields only, so every ABI agrees. */
-typedef char track_state_is_292_bytes[sizeof(track_state) == 292u ? 1 : -1];
+/* The scratch size is part of the format (docs/FORMAT.md, RMAL versions 3 and 4 "Sampling"):
+ * changing this structure is a new section version. Plain 32-bit fields only, so every ABI
+ * agrees. */
+#define TRACK_BYTES(V) ((V) == 4u ? sizeof(track_state) : offsetof(track_state, d3))
+typedef char track_state_v3_is_292_bytes[offsetof(track_state, d3) == 292u ? 1 : -1];
+typedef char track_state_v4_is_308_bytes[sizeof(track_state) == 308u ? 1 : -1];
 
 /* ---------------------------------------------------------------- layout */
 /* The layout of a track whose descriptor is at `d` and whose data starts at byte `at`; checks
@@ -122,7 +142,8 @@ static uint32_t row_frame(const uint8_t* p, const track_layout* t, uint32_t e) {
 }
 
 /* Row e: the reader at the block's first key, which is `k` (the anchor). */
-static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uint32_t e, reader* R, key* k) {
+static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uint32_t e, reader* R, key* k,
+                                    uint32_t V) {
     const uint8_t* table = p + t->table;
     uint64_t bit = (uint64_t)e * t->row_bits;
     uint64_t h = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* frame and offset: <= 56 bits */
@@ -131,7 +152,14 @@ static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uin
     R->bit = (uint32_t)((h >> t->fbits) & ((((uint64_t)1) << t->obits) - 1u));
     bit += t->fbits + t->obits;
     h = mcd_rd_u64(table + (size_t)(bit >> 3)) >> (bit & 7u); /* parameters: <= 25 bits */
-    for (c = 0; c < 5u; ++c) R->k[c] = (uint8_t)((h >> (K_BITS * c)) & 31u);
+    for (c = 0; c < 5u; ++c) {
+        uint32_t f = (uint32_t)(h >> (K_BITS * c)) & 31u;
+        if (V == 4u) /* the zero flag with k = 0, so a code never reads for it */
+            f = ((f & 15u) == K_ZERO_FIELD ? K_ZERO : (f & 15u)) | (f & K_SLOPE_FIELD ? K_SLOPE : 0u);
+        R->k[c] = (uint8_t)f;
+    }
+    if (V == 4u)
+        for (c = 0; c < 4u; ++c) k->d[c] = 0;
     bit += K_BITS * (t->dims + 1u);
     k->q[3] = 0;
     for (c = 0; c < t->dims; ++c) {
@@ -143,33 +171,57 @@ static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uin
     R->n = e + 1u < t->rows ? 1u << t->shift : t->keys - (e << t->shift);
 }
 
-/* The key after `from` inside the reader's block into `to` (may be `from`). D is a constant in
- * each caller's copy, so the component loop unrolls. */
-static MCD_HOT_INLINE void step_d(const uint8_t* data, reader* R, const key* from, key* to, uint32_t D) {
-    uint32_t bit = R->bit, c;
-    to->frame = from->frame + 1u + (uint32_t)rice(data, &bit, R->k[0]);
-    for (c = 0; c < D; ++c) to->q[c] = from->q[c] + unzig(rice(data, &bit, R->k[c + 1u]));
+/* The value of one code of a stream whose reader field is f: version 4's zero streams have
+ * none. */
+static MCD_HOT_INLINE uint64_t code(const uint8_t* data, uint32_t* bit, uint32_t f, uint32_t V) {
+    if (V == 4u && (f & K_ZERO)) return 0;
+    return rice(data, bit, V == 4u ? f & 15u : f);
+}
+
+/* Key `to` from key `from` and the codes at *bit: its frame, then each component (version 4:
+ * the slope predictor adds the difference before). */
+static MCD_HOT_INLINE void key_from_codes(const uint8_t* data, uint32_t* bit, const uint8_t k[5], const key* from,
+                                          key* to, uint32_t D, uint32_t V) {
+    uint32_t c;
+    to->frame = from->frame + 1u + (uint32_t)code(data, bit, k[0], V);
+    for (c = 0; c < D; ++c) {
+        int64_t d = unzig(code(data, bit, k[c + 1u], V));
+        if (V == 4u) {
+            d += k[c + 1u] & K_SLOPE ? from->d[c] : 0;
+            to->d[c] = d;
+        }
+        to->q[c] = from->q[c] + d;
+    }
     if (D == 3u) to->q[3] = 0;
+}
+
+/* The key after `from` inside the reader's block into `to` (may be `from`). D and V are
+ * constants in each caller's copy, so the component loop unrolls. */
+static MCD_HOT_INLINE void step_d(const uint8_t* data, reader* R, const key* from, key* to, uint32_t D, uint32_t V) {
+    uint32_t bit = R->bit;
+    key_from_codes(data, &bit, R->k, from, to, D, V);
     R->bit = bit;
     R->r++;
 }
 
 /* Inline, as next_key: playback calls them once per key of a track. */
-static MCD_HOT_INLINE void step(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+static MCD_HOT_INLINE void step(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to,
+                                uint32_t V) {
     if (t->dims == 3u)
-        step_d(p + t->data, R, from, to, 3u);
+        step_d(p + t->data, R, from, to, 3u, V);
     else
-        step_d(p + t->data, R, from, to, 4u);
+        step_d(p + t->data, R, from, to, 4u, V);
 }
 
 /* The key after `from`, into the next block when the reader's ends; 0 past the last key. */
-static MCD_HOT_INLINE int next_key(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to) {
+static MCD_HOT_INLINE int next_key(const uint8_t* p, const track_layout* t, reader* R, const key* from, key* to,
+                                   uint32_t V) {
     if (R->r + 1u < R->n) {
-        step(p, t, R, from, to);
+        step(p, t, R, from, to, V);
         return 1;
     }
     if (R->e + 1u >= t->rows) return 0;
-    load_row(p, t, R->e + 1u, R, to);
+    load_row(p, t, R->e + 1u, R, to, V);
     return 1;
 }
 
@@ -188,14 +240,12 @@ static uint32_t find_block(const uint8_t* p, const track_layout* t, uint32_t xi)
 /* From the block's first key (ring[0]) on to key i + 1, the first after xi, inside the block:
  * returns key i's rank j, keys j - 3 ... j + 1 in ring[rank & 3]; the reader at key j + 1 (or at
  * key j = n - 1 when the block ends first). */
-static MCD_HOT_INLINE uint32_t walk_d(const uint8_t* data, reader* R, key ring[4], uint32_t xi, uint32_t D) {
-    uint32_t bit = R->bit, j, c, n = R->n;
+static MCD_HOT_INLINE uint32_t walk_d(const uint8_t* data, reader* R, key ring[4], uint32_t xi, uint32_t D,
+                                      uint32_t V) {
+    uint32_t bit = R->bit, j, n = R->n;
     for (j = 0; j + 1u < n; ++j) {
-        const key* a = &ring[j & 3u];
         key* b = &ring[(j + 1u) & 3u];
-        b->frame = a->frame + 1u + (uint32_t)rice(data, &bit, R->k[0]);
-        for (c = 0; c < D; ++c) b->q[c] = a->q[c] + unzig(rice(data, &bit, R->k[c + 1u]));
-        if (D == 3u) b->q[3] = 0;
+        key_from_codes(data, &bit, R->k, &ring[j & 3u], b, D, V);
         if (b->frame > xi) break;
     }
     R->bit = bit;
@@ -204,72 +254,103 @@ static MCD_HOT_INLINE uint32_t walk_d(const uint8_t* data, reader* R, key ring[4
 }
 
 /* The last key of block e (the whole block's decode). */
-static void block_last_key(const uint8_t* p, const track_layout* t, uint32_t e, key* k) {
+static void block_last_key(const uint8_t* p, const track_layout* t, uint32_t e, key* k, uint32_t V) {
     reader P;
-    load_row(p, t, e, &P, k);
-    while (P.r + 1u < P.n) step(p, t, &P, k, k);
+    load_row(p, t, e, &P, k, V);
+    while (P.r + 1u < P.n) step(p, t, &P, k, k, V);
 }
 
-static void set_key3(track_state* ts, const key* k) {
+static void set_key3(track_state* ts, const key* k, uint32_t V) {
     uint32_t c;
     ts->frame3 = k->frame;
     for (c = 0; c < 4u; ++c) ts->q3[c] = (int32_t)k->q[c]; /* validated: |q| < 2^30 */
+    if (V == 4u)
+        for (c = 0; c < 4u; ++c) ts->d3[c] = (int32_t)k->d[c]; /* so |d| < 2^31 */
+}
+
+static MCD_HOT_INLINE void get_key3(const track_state* ts, key* k, uint32_t V) {
+    uint32_t c;
+    k->frame = ts->frame3;
+    for (c = 0; c < 4u; ++c) k->q[c] = ts->q3[c];
+    if (V == 4u)
+        for (c = 0; c < 4u; ++c) k->d[c] = ts->d3[c];
 }
 
 /* Random access: the segment holding frame position x, its four keys decoded afresh; key i - 1
  * from the previous block when key i is a block's first. */
-static void locate(const uint8_t* p, track_state* ts, float x) {
+static MCD_HOT_INLINE void locate_v(const uint8_t* p, track_state* ts, float x, uint32_t V) {
     const track_layout* t = &ts->L;
     uint32_t xi = (uint32_t)x, j, e;
     key ring[4], k3;
     reader R;
     if (xi > t->frames - 2u) xi = t->frames - 2u; /* the last frame: the segment before it */
     e = find_block(p, t, xi);
-    load_row(p, t, e, &R, &ring[0]);
-    j = t->dims == 3u ? walk_d(p + t->data, &R, ring, xi, 3u) : walk_d(p + t->data, &R, ring, xi, 4u);
-    if (j + 1u >= R.n) load_row(p, t, e + 1u, &R, &ring[(j + 1u) & 3u]); /* key i ends its block */
-    if (j == 0u && e > 0u) block_last_key(p, t, e - 1u, &ring[3]);
+    load_row(p, t, e, &R, &ring[0], V);
+    j = t->dims == 3u ? walk_d(p + t->data, &R, ring, xi, 3u, V) : walk_d(p + t->data, &R, ring, xi, 4u, V);
+    if (j + 1u >= R.n) load_row(p, t, e + 1u, &R, &ring[(j + 1u) & 3u], V); /* key i ends its block */
+    if (j == 0u && e > 0u) block_last_key(p, t, e - 1u, &ring[3], V);
     if (j > 0u || e > 0u) mcd_rmal_store_key(&ts->W, 0, ring[(j + 3u) & 3u].frame, ring[(j + 3u) & 3u].q, t->step);
     mcd_rmal_store_key(&ts->W, 1, ring[j & 3u].frame, ring[j & 3u].q, t->step);
     mcd_rmal_store_key(&ts->W, 2, ring[(j + 1u) & 3u].frame, ring[(j + 1u) & 3u].q, t->step);
     if (j == 0u && e == 0u) mcd_rmal_repeat_slot(&ts->W, 0, 1);
     k3 = ring[(j + 1u) & 3u];
-    R.at_end = (uint8_t)!next_key(p, t, &R, &k3, &k3);
+    R.at_end = (uint8_t)!next_key(p, t, &R, &k3, &k3, V);
     if (R.at_end)
         mcd_rmal_repeat_slot(&ts->W, 3, 2);
     else
         mcd_rmal_store_key(&ts->W, 3, k3.frame, k3.q, t->step);
-    set_key3(ts, &k3);
+    set_key3(ts, &k3, V);
     ts->R = R;
     ts->W.i = (e << t->shift) + j;
     mcd_rmal_set_curve(&ts->W);
 }
 
+static void locate3(const uint8_t* p, track_state* ts, float x) {
+    locate_v(p, ts, x, 3u);
+}
+
+static void locate4(const uint8_t* p, track_state* ts, float x) {
+    locate_v(p, ts, x, 4u);
+}
+
+static MCD_HOT_INLINE void locate(const uint8_t* p, track_state* ts, float x, uint32_t V) {
+    if (V == 4u)
+        locate4(p, ts, x);
+    else
+        locate3(p, ts, x);
+}
+
 /* ---------------------------------------------------------------- playback */
 /* One key on (the window's slot 2 is not the last key): the key after slot 3's, if any,
  * becomes slot 3. */
-static void advance(const uint8_t* p, track_state* ts) {
+static MCD_HOT_INLINE void advance_v(const uint8_t* p, track_state* ts, uint32_t V) {
     key k;
-    uint32_t c;
     /* memmove: copies through locals took fewer instructions but timed 10 % slower at 0.02 cm
      * (their vector loads of the slot just stored wait for the stores). */
     memmove(ts->W.t, ts->W.t + 1, 3u * sizeof ts->W.t[0]);
     memmove(ts->W.v[0], ts->W.v[1], 3u * sizeof ts->W.v[0]);
     ts->W.i++;
-    k.frame = ts->frame3;
-    for (c = 0; c < 4u; ++c) k.q[c] = ts->q3[c];
-    if (next_key(p, &ts->L, &ts->R, &k, &k)) {
+    get_key3(ts, &k, V);
+    if (next_key(p, &ts->L, &ts->R, &k, &k, V)) {
         mcd_rmal_store_key(&ts->W, 3, k.frame, k.q, ts->L.step);
-        set_key3(ts, &k);
+        set_key3(ts, &k, V);
     } else {
         ts->R.at_end = 1;
         mcd_rmal_repeat_slot(&ts->W, 3, 2);
     }
 }
 
+static void advance3(const uint8_t* p, track_state* ts) {
+    advance_v(p, ts, 3u);
+}
+
+static void advance4(const uint8_t* p, track_state* ts) {
+    advance_v(p, ts, 4u);
+}
+
 /* The curve of one track at x: the cached segment, a few keys on from it, or a fresh locate.
  * Either way the window is the four keys around x's segment, so the curve is the same bits. */
-static void track_value(const uint8_t* p, mcd_rmal_curve* w, float x, float out[4]) {
+static MCD_HOT_INLINE void track_value(const uint8_t* p, mcd_rmal_curve* w, float x, float out[4], uint32_t V) {
     track_state* ts = (track_state*)w;
     uint32_t n;
     if (ts->L.keys == 1u) { /* a one-frame clip */
@@ -277,19 +358,32 @@ static void track_value(const uint8_t* p, mcd_rmal_curve* w, float x, float out[
         return;
     }
     if (!ts->W.valid || x < ts->W.t1) {
-        locate(p, ts, x);
+        locate(p, ts, x, V);
     } else if (x >= ts->W.t2 && !ts->R.at_end) { /* x = the last key is the last segment's */
         if (x >= ts->W.t[3] + FAR_FRAMES) { /* a jump: locate at once rather than step there */
-            locate(p, ts, x);
+            locate(p, ts, x, V);
         } else {
-            for (n = 0; n < MAX_ADVANCE && x >= ts->W.t[2] && !ts->R.at_end; ++n) advance(p, ts);
+            for (n = 0; n < MAX_ADVANCE && x >= ts->W.t[2] && !ts->R.at_end; ++n) {
+                if (V == 4u)
+                    advance4(p, ts);
+                else
+                    advance3(p, ts);
+            }
             if (x >= ts->W.t[2] && !ts->R.at_end)
-                locate(p, ts, x);
+                locate(p, ts, x, V);
             else
                 mcd_rmal_set_curve(&ts->W);
         }
     }
     mcd_rmal_eval(&ts->W, x, out);
+}
+
+static void track_value3(const uint8_t* p, mcd_rmal_curve* w, float x, float out[4]) {
+    track_value(p, w, x, out, 3u);
+}
+
+static void track_value4(const uint8_t* p, mcd_rmal_curve* w, float x, float out[4]) {
+    track_value(p, w, x, out, 4u);
 }
 
 /* A track's state from its validated descriptor (rmal_payload.h). */
@@ -300,27 +394,41 @@ static uint32_t init_track(const uint8_t* p, const uint8_t* d, uint32_t frames, 
     track_geometry(d, frames, at, limit, &ts->L, &data_bytes, &end); /* validated: cannot fail */
     if (ts->L.keys == 1u) { /* one frame: the single key is row 0's anchor */
         key k;
-        load_row(p, &ts->L, 0, &ts->R, &k);
+        load_row(p, &ts->L, 0, &ts->R, &k, 3u); /* the anchor reads alike in both versions */
         mcd_rmal_store_key(&ts->W, 0, 0, k.q, ts->L.step);
     }
     return end;
 }
 
-static size_t rma_scratch_size(const mcd_clip_view* v) {
-    return mcd_rmal_scratch_size(v, sizeof(track_state));
+static size_t rma3_scratch_size(const mcd_clip_view* v) {
+    return mcd_rmal_scratch_size(v, TRACK_BYTES(3u));
 }
 
-static void rma_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
-                       int fresh) {
+static size_t rma4_scratch_size(const mcd_clip_view* v) {
+    return mcd_rmal_scratch_size(v, TRACK_BYTES(4u));
+}
+
+static void rma3_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                        int fresh) {
     (void)flags;
-    mcd_rmal_sample(v, x, out, scratch, fresh, sizeof(track_state), init_track, track_value);
+    mcd_rmal_sample(v, x, out, scratch, fresh, TRACK_BYTES(3u), init_track, track_value3);
+}
+
+static void rma4_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_transform* out, void* scratch,
+                        int fresh) {
+    (void)flags;
+    mcd_rmal_sample(v, x, out, scratch, fresh, TRACK_BYTES(4u), init_track, track_value4);
 }
 
 /* ---------------------------------------------------------------- validation */
 /* One code at *bit of a data area whose codes end by bit `end`, into z: 0 when it reads past
  * `end` or is an escape of a value that had a short code (no other code is valid). */
-static int checked_code(const uint8_t* data, uint64_t* bit, uint32_t k, uint64_t end, uint64_t* z) {
-    uint32_t b = (uint32_t)*bit; /* < end < 2^32 (MAX_DATA_BYTES) */
+static int checked_code(const uint8_t* data, uint64_t* bit, uint32_t f, uint64_t end, uint64_t* z, uint32_t V) {
+    uint32_t b = (uint32_t)*bit, k = V == 4u ? f & 15u : f; /* b < end < 2^32 (MAX_DATA_BYTES) */
+    if (V == 4u && (f & K_ZERO)) { /* a zero stream: no code */
+        *z = 0;
+        return 1;
+    }
     if (*bit >= end) return 0;
     *z = rice(data, &b, k);
     /* Only an escape is 48 bits long: a short code is at most 15 + 1 + 31. */
@@ -341,7 +449,7 @@ static int key_in_range(const track_layout* t, const key* k) {
 }
 
 /* Every rule of one track's row table and data area, decoding every key. */
-static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t data_bytes) {
+static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t data_bytes, uint32_t V) {
     const uint8_t* data = p + t->data;
     uint64_t end = 8u * (uint64_t)data_bytes, bit = 0;
     uint32_t e, r, c, last = 0;
@@ -351,19 +459,25 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t 
     for (e = 0; e < t->rows; ++e) {
         reader R;
         key k;
-        load_row(p, t, e, &R, &k);
-        /* Each block's codes where the one before ended; frames increasing from 0. */
+        load_row(p, t, e, &R, &k, V);
+        /* Each block's codes where the one before ended; frames increasing from 0; version 4:
+         * no slope on the gaps. */
         if (R.bit != bit || (e == 0 ? k.frame != 0 : k.frame <= last) || k.frame > t->frames - 1u)
             return MCD_ERROR_MALFORMED;
+        if (V == 4u && (R.k[0] & K_SLOPE)) return MCD_ERROR_MALFORMED;
         if (!key_in_range(t, &k)) return MCD_ERROR_MALFORMED;
         for (r = 1; r < R.n; ++r) {
             uint64_t z;
-            if (!checked_code(data, &bit, R.k[0], end, &z) || z >= (uint64_t)(t->frames - 1u - k.frame))
+            if (!checked_code(data, &bit, R.k[0], end, &z, V) || z >= (uint64_t)(t->frames - 1u - k.frame))
                 return MCD_ERROR_MALFORMED; /* the gap: the frame after stays at most F - 1 */
             k.frame += 1u + (uint32_t)z;
             for (c = 0; c < t->dims; ++c) {
-                if (!checked_code(data, &bit, R.k[c + 1u], end, &z)) return MCD_ERROR_MALFORMED;
-                k.q[c] += unzig(z); /* z < 2^36: no overflow */
+                int64_t d;
+                if (!checked_code(data, &bit, R.k[c + 1u], end, &z, V)) return MCD_ERROR_MALFORMED;
+                /* z < 2^32 and, the keys before being in range, |d before| < 2^31: no overflow */
+                d = unzig(z) + (V == 4u && (R.k[c + 1u] & K_SLOPE) ? k.d[c] : 0);
+                k.d[c] = d;
+                k.q[c] += d;
             }
             if (!key_in_range(t, &k)) return MCD_ERROR_MALFORMED;
         }
@@ -379,17 +493,33 @@ static mcd_result check_track(const uint8_t* p, const track_layout* t, uint32_t 
 
 /* One track: its layout within [at, limit), then every rule of its data (rmal_payload.h). */
 static mcd_result check_one(const uint8_t* p, const uint8_t* desc, uint32_t frames, uint32_t at, uint32_t limit,
-                            uint32_t* end) {
+                            uint32_t* end, uint32_t V) {
     track_layout t;
     uint32_t data_bytes;
     mcd_result r = track_geometry(desc, frames, at, limit, &t, &data_bytes, end);
     if (r != MCD_OK) return r;
-    return check_track(p, &t, data_bytes);
+    return check_track(p, &t, data_bytes, V);
 }
 
-static mcd_result rma_validate(const mcd_clip_view* v) {
-    return mcd_rmal_validate_payload(v, check_one);
+static mcd_result check_one3(const uint8_t* p, const uint8_t* desc, uint32_t frames, uint32_t at, uint32_t limit,
+                             uint32_t* end) {
+    return check_one(p, desc, frames, at, limit, end, 3u);
 }
 
-const mcd_codec_ops mcd_codec_rma_ops = {MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 3u, mcd_rmal_validate_section,
-                                         rma_validate, rma_scratch_size, rma_sample};
+static mcd_result check_one4(const uint8_t* p, const uint8_t* desc, uint32_t frames, uint32_t at, uint32_t limit,
+                             uint32_t* end) {
+    return check_one(p, desc, frames, at, limit, end, 4u);
+}
+
+static mcd_result rma3_validate(const mcd_clip_view* v) {
+    return mcd_rmal_validate_payload(v, check_one3);
+}
+
+static mcd_result rma4_validate(const mcd_clip_view* v) {
+    return mcd_rmal_validate_payload(v, check_one4);
+}
+
+const mcd_codec_ops mcd_codec_rma_ops = {MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 4u, mcd_rmal_validate_section,
+                                         rma4_validate, rma4_scratch_size, rma4_sample};
+const mcd_codec_ops mcd_codec_rma_v3_ops = {MCD_CODEC_RMA, 0x4C414D52u /* "RMAL" */, 3u, mcd_rmal_validate_section,
+                                            rma3_validate, rma3_scratch_size, rma3_sample};

@@ -3,7 +3,7 @@
 #include "internal.h"
 
 static const mcd_codec_ops* const k_codecs[] = {
-    &mcd_codec_spline_ops,   &mcd_codec_neural_ops,  &mcd_codec_rma_ops, &mcd_codec_rma_v2_ops,
+    &mcd_codec_spline_ops,   &mcd_codec_neural_ops,  &mcd_codec_rma_ops, &mcd_codec_rma_v3_ops, &mcd_codec_rma_v2_ops,
     &mcd_codec_ikpredict_ops, &mcd_codec_rmapca_ops, &mcd_codec_fkwavelet_ops,
 };
 

@@ -346,7 +346,8 @@ const mcd_codec_ops* mcd_find_codec_by_kind(uint32_t section_kind);
 /* Codec implementations. */
 extern const mcd_codec_ops mcd_codec_spline_ops;
 extern const mcd_codec_ops mcd_codec_neural_ops;
-extern const mcd_codec_ops mcd_codec_rma_ops;    /* RMAL version 3 */
+extern const mcd_codec_ops mcd_codec_rma_ops;    /* RMAL version 4 */
+extern const mcd_codec_ops mcd_codec_rma_v3_ops; /* RMAL version 3: rma before version 4 */
 extern const mcd_codec_ops mcd_codec_rma_v2_ops; /* RMAL version 2: rma before, rma-pca's curve sets */
 extern const mcd_codec_ops mcd_codec_fkwavelet_ops;
 extern const mcd_codec_ops mcd_codec_ikpredict_ops;

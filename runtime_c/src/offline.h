@@ -10,7 +10,7 @@
 
 /* The codec scratch bytes (a multiple of 16) a clip of codec `codec` needs, for its clip
  * record: its payload is section[payload_offset .. + payload_size) of a complete codec
- * section of the version the encoder writes now (RMAL 3 for rma), its skeleton a complete
+ * section of the version the encoder writes now (RMAL 4 for rma), its skeleton a complete
  * SKEL section. Checks the payload as mcd_validate would
  * (MCD_ERROR_MALFORMED, MCD_ERROR_UNSUPPORTED for an unknown codec). */
 mcd_result mcd_offline_clip_scratch(uint32_t codec, const uint8_t* section, size_t section_size,

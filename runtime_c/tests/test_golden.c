@@ -200,8 +200,13 @@ static const asset_fact k_facts[] = {
     {"rma_library.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11", 166, 1, 0}}},
     {"spline_rest_pose.mcd", MCD_CODEC_SPLINE, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},
     {"rma_rest_pose.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},
-    /* RMAL version 3 at 0.05 cm in blocks of 8 keys: dense keys, wide differences, short blocks */
+    /* RMAL version 4 at 0.05 cm in blocks of 8 keys: dense keys, wide differences, short blocks,
+     * slope predictors and streams of zeros */
     {"rma_09_11_dense.mcd", MCD_CODEC_RMA, 1, 1, 1, {{"09_11_head", 120, 0, 0}}},
+    /* RMAL version 3 (rma before version 4): still read */
+    {"rma_rmal3_library.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11", 166, 1, 0}}},
+    {"rma_rmal3_rest_pose.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},
+    {"rma_rmal3_09_11_dense.mcd", MCD_CODEC_RMA, 1, 1, 1, {{"09_11_head", 120, 0, 0}}},
     /* RMAL version 2 (rma before version 3): still read */
     {"rma_rmal2_library.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11", 166, 1, 0}}},
     {"rma_rmal2_rest_pose.mcd", MCD_CODEC_RMA, 1, 2, 2, {{"07_01", 317, 0, 0}, {"09_11_leg", 166, 1, 1}}},

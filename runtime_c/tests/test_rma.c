@@ -1,7 +1,7 @@
-/* Codec rma's RMAL sections (docs/FORMAT.md, RMAL versions 3 and 2): the scratch each version
- * states, playback in steps of every size (a key interval, a game tick, a jump) against a cold
- * random access bit for bit, and version 3's rules one by one on payloads written here from
- * keys (a small writer of the spec's layout), each broken alone and refused.
+/* Codec rma's RMAL sections (docs/FORMAT.md, RMAL versions 4, 3 and 2): the scratch each
+ * version states, playback in steps of every size (a key interval, a game tick, a jump) against
+ * a cold random access bit for bit, and the rules of versions 3 and 4 one by one on payloads
+ * written here from keys (a small writer of the spec's layout), each broken alone and refused.
  *
  * The writer replaces the RMAL section of a golden asset of codec rma: every clip gets a
  * payload whose node 0 translation is one track (kind 3) and whose other nodes rest. */
@@ -14,7 +14,7 @@
 void test_rma_section_versions(void);
 void test_rma_scratch_sizes(void);
 void test_rma_playback_steps(void);
-void test_rma_v3_rules(void);
+void test_rma_block_rules(void);
 
 #define MAX_NODES 1024u
 #define ALIGN16(x) (((x) + 15u) & ~(size_t)15u)
@@ -27,25 +27,25 @@ static const uint8_t* rmal_entry(const uint8_t* asset, uint32_t* version, uint32
 }
 
 /* ---------------------------------------------------------------- versions */
-/* Versions 2 and 3 are read, each by its own reader: a section labelled with the other one is
- * malformed, one labelled 1 or 4 unsupported. */
+/* Versions 2, 3 and 4 are read, each by its own reader: a golden's section labelled with
+ * another of them is malformed, one labelled 1 or 5 unsupported. */
 void test_rma_section_versions(void) {
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i;
     uint32_t tested = 0;
     for (i = 0; i < n; ++i) {
-        static const uint32_t labels[3] = {1, 4, 0};
-        uint32_t version = 0, index, k;
+        uint32_t version = 0, index, label;
         if (!rmal_entry(g[i].file.data, &version, &index)) continue;
         tested++;
-        for (k = 0; k < 3u; ++k) {
-            uint8_t* copy = mcd_test_copy(g[i].file.data, g[i].file.size);
-            uint32_t label = labels[k] ? labels[k] : 5u - version; /* 0: the other version */
+        for (label = 1; label <= 5u; ++label) {
+            uint8_t* copy;
+            if (label == version) continue;
+            copy = mcd_test_copy(g[i].file.data, g[i].file.size);
             if (!copy) break;
             mcd_test_wr_u32(copy + 32 + 16u * index + 4u, label);
             mcd_test_fix_crc(copy, g[i].file.size);
             CHECK_MSG(mcd_validate(copy, g[i].file.size, 0) ==
-                          (labels[k] ? MCD_ERROR_UNSUPPORTED : MCD_ERROR_MALFORMED),
+                          (label == 1u || label == 5u ? MCD_ERROR_UNSUPPORTED : MCD_ERROR_MALFORMED),
                       "%s: RMAL version %u labelled %u: %s", g[i].file.path, version, label,
                       mcd_result_string(mcd_validate(copy, g[i].file.size, 0)));
             free(copy);
@@ -56,24 +56,27 @@ void test_rma_section_versions(void) {
 }
 
 /* ---------------------------------------------------------------- scratch */
-/* align16(48 N) + align16(S T): S = 292 bytes a track in version 3, 348 in version 2. */
+/* align16(48 N) + align16(S T): S = 308 bytes a track in version 4, 292 in version 3, 348 in
+ * version 2. */
 void test_rma_scratch_sizes(void) {
+    static const size_t track_bytes[5] = {0, 0, 348u, 292u, 308u};
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i;
-    uint32_t seen[4] = {0, 0, 0, 0};
+    uint32_t seen[5] = {0, 0, 0, 0, 0};
     for (i = 0; i < n; ++i) {
         const uint8_t* d = g[i].file.data;
         uint32_t version = 0, c;
         const uint8_t* e = rmal_entry(d, &version, NULL);
         const uint8_t* clips = mcd_test_section(d, "CLIP", 0, NULL);
         if (!e || !clips) continue;
-        CHECK_MSG(version == 2u || version == 3u, "%s: RMAL version %u", g[i].file.path, version);
-        seen[version & 3u]++;
+        CHECK_MSG(version >= 2u && version <= 4u, "%s: RMAL version %u", g[i].file.path, version);
+        if (version < 2u || version > 4u) continue;
+        seen[version]++;
         for (c = 0; c < mcd_clip_count(&g[i].asset); ++c) {
             const uint8_t* r = d + mcd_test_rd_u32(clips + 8) + 8u + 48u * c;
             const uint8_t* p = d + mcd_test_rd_u32(e + 8) + mcd_test_rd_u32(r + 16);
             size_t want = ALIGN16(48u * (size_t)mcd_test_rd_u32(p + 8)) +
-                          ALIGN16((version == 3u ? 292u : 348u) * (size_t)mcd_test_rd_u32(p + 12));
+                          ALIGN16(track_bytes[version] * (size_t)mcd_test_rd_u32(p + 12));
             mcd_clip_info info;
             if (mcd_test_rd_u32(r + 8) != MCD_CODEC_RMA) continue;
             CHECK_RESULT(mcd_get_clip_info(&g[i].asset, c, &info), MCD_OK);
@@ -81,7 +84,8 @@ void test_rma_scratch_sizes(void) {
                       (unsigned)info.scratch_size, (unsigned long)want);
         }
     }
-    CHECK_MSG(seen[2] > 0 && seen[3] > 0, "goldens with RMAL version 2: %u, version 3: %u", seen[2], seen[3]);
+    CHECK_MSG(seen[2] > 0 && seen[3] > 0 && seen[4] > 0, "goldens with RMAL version 2: %u, version 3: %u, version 4: %u",
+              seen[2], seen[3], seen[4]);
     mcd_test_free_golden(g, n);
 }
 
@@ -142,7 +146,7 @@ void test_rma_playback_steps(void) {
     mcd_test_free_golden(g, n);
 }
 
-/* ---------------------------------------------------------------- version 3 rules */
+/* ---------------------------------------------------------------- rules of versions 3 and 4 */
 /* What the writer breaks: each alone, and each one a rule the reader must refuse. */
 enum fault {
     OK_PAYLOAD = 0,
@@ -161,6 +165,7 @@ enum fault {
     SHIFT_7,           /* block shift 7 */
     BYTE1_HIGH,        /* descriptor byte 1 bit 4 */
     END_PADDING,       /* a one in the payload's 8 zero end bytes */
+    GAP_SLOPE,         /* version 4: the slope predictor on the gaps */
     FAULTS
 };
 
@@ -204,13 +209,18 @@ typedef struct keys {
 } keys;
 
 /* Keys for a clip of F frames: every 3rd frame (at most 100 of them) and the last, values that
- * wander, one jump that takes an escape. */
-static void make_keys(uint32_t frames, keys* K) {
+ * wander, one jump that takes an escape. For version 4, component 1 stands still (streams of
+ * zeros) and component 2 bends evenly (the slope predictor). */
+static void make_keys(uint32_t frames, keys* K, uint32_t version) {
     uint32_t f = 0, c;
     K->count = 0;
     while (K->count < 100u && f < frames - 1u) {
         K->frame[K->count] = f;
         for (c = 0; c < 3u; ++c) K->q[K->count][c] = (int64_t)((K->count * (c + 3u) * 37u) % 101u) - 50;
+        if (version == 4u) {
+            K->q[K->count][1] = 5;
+            K->q[K->count][2] = (int64_t)K->count * (int64_t)K->count - 50;
+        }
         K->count++;
         f += 3u;
     }
@@ -224,14 +234,28 @@ static void make_keys(uint32_t frames, keys* K) {
 #define GAP_K 2u
 #define VAL_K 3u
 
+/* Version 4: component c's residual into key j (block e's keys from e B) and its row field. */
+static int64_t residual(const keys* K, uint32_t j, uint32_t c, uint32_t first) {
+    int64_t d = K->q[j][c] - K->q[j - 1u][c];
+    return c == 2u && j >= first + 2u ? d - (K->q[j - 1u][c] - K->q[j - 2u][c]) : d;
+}
+
+static uint32_t field(const keys* K, uint32_t e, uint32_t B, uint32_t c, uint32_t version) {
+    uint32_t j, zero = 1;
+    if (version == 3u) return VAL_K;
+    for (j = e * B + 1u; j < e * B + B && j < K->count; ++j) zero &= residual(K, j, c, e * B) == 0;
+    return (zero && e * B + 1u < K->count ? 15u : VAL_K) | (c == 2u ? 16u : 0u);
+}
+
 /* The payload of one clip: N nodes, node 0's translation the track, in blocks of 2^shift. */
-static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint32_t shift, enum fault f) {
+static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint32_t shift, enum fault f,
+                            uint32_t version) {
     keys K;
     uint32_t B, rows, fb, ob = 16, row_bits, e, j, c, at, table_bytes, data_bytes, end, size;
     uint8_t* d;
     bits w;
     uint64_t total;
-    make_keys(frames, &K);
+    make_keys(frames, &K, version);
     if (f == FIRST_FRAME) K.frame[0] = 1;
     if (f == LAST_FRAME) K.frame[K.count - 1u] = frames - 2u;
     if (f == Q_TOO_WIDE) K.q[1][1] = (int64_t)1 << 30; /* key 1: never a row's */
@@ -260,8 +284,11 @@ static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint3
             offsets[e] = w.at;
             for (j = e * B + 1u; j < e * B + B && j < K.count; ++j) {
                 put_rice(&w, K.frame[j] - K.frame[j - 1u] - 1u, GAP_K, 0);
-                for (c = 0; c < 3u; ++c)
-                    put_rice(&w, zig(K.q[j][c] - K.q[j - 1u][c]), VAL_K, f == SHORT_ESCAPE && j == 1u && c == 0u);
+                for (c = 0; c < 3u; ++c) {
+                    if (version == 4u && (field(&K, e, B, c, version) & 15u) == 15u) continue; /* no codes */
+                    put_rice(&w, zig(version == 4u ? residual(&K, j, c, e * B) : K.q[j][c] - K.q[j - 1u][c]), VAL_K,
+                             f == SHORT_ESCAPE && j == 1u && c == 0u);
+                }
             }
         }
         total = w.at;
@@ -294,8 +321,8 @@ static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint3
             uint32_t k0 = e * B;
             put(&w, f == ROW_FRAME_BACK && e == 1u ? K.frame[k0 - 1u] : K.frame[k0], fb);
             put(&w, offsets[e] + (f == ROW_OFFSET && e == 1u ? 1u : 0u), ob);
-            put(&w, GAP_K, 5);
-            for (c = 0; c < 3u; ++c) put(&w, VAL_K, 5);
+            put(&w, GAP_K | (f == GAP_SLOPE && e == 0u ? 16u : 0u), 5);
+            for (c = 0; c < 3u; ++c) put(&w, field(&K, e, B, c, version), 5);
             for (c = 0; c < 3u; ++c) put(&w, (uint64_t)K.q[k0][c] & ((1u << ABITS) - 1u), ABITS);
         }
         if (f == ROW_PADDING) {
@@ -313,9 +340,10 @@ static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint3
 }
 
 /* A golden of codec rma with every clip's payload written anew (`f` in clip 0's), its RMAL
- * section made version 3; with `one_frame`, clip 0 made one frame long. NULL when out of
+ * section made `version`; with `one_frame`, clip 0 made one frame long. NULL when out of
  * memory. */
-static uint8_t* rewrite_asset(const mcd_test_file* src, uint32_t shift, enum fault f, int one_frame, size_t* size) {
+static uint8_t* rewrite_asset(const mcd_test_file* src, uint32_t shift, enum fault f, int one_frame, uint32_t version,
+                              size_t* size) {
     static uint8_t section[1u << 20];
     const uint8_t* d = src->data;
     uint32_t index, c, count, pos = 16;
@@ -332,19 +360,19 @@ static uint8_t* rewrite_asset(const mcd_test_file* src, uint32_t shift, enum fau
         const uint8_t* skel = mcd_test_section(d, "SKEL", mcd_test_rd_u32(r + 4), NULL);
         uint32_t nodes = mcd_test_rd_u32(d + mcd_test_rd_u32(skel + 8));
         offsets[c] = pos;
-        sizes[c] = (uint32_t)write_payload(section + pos, frames, nodes, shift, c == 0 ? f : OK_PAYLOAD);
+        sizes[c] = (uint32_t)write_payload(section + pos, frames, nodes, shift, c == 0 ? f : OK_PAYLOAD, version);
         pos += sizes[c];
     }
     asset = mcd_test_replace_section(d, index, section, pos, size);
     if (!asset) return NULL;
-    mcd_test_wr_u32(asset + 32 + 16u * index + 4u, 3u);
+    mcd_test_wr_u32(asset + 32 + 16u * index + 4u, version);
     clips = mcd_test_section(asset, "CLIP", 0, NULL);
     records = asset + mcd_test_rd_u32(clips + 8) + 8u;
     for (c = 0; c < count && c < 64u; ++c) {
         uint32_t nodes = mcd_test_rd_u32(section + offsets[c] + 8);
         mcd_test_wr_u32(records + 48u * c + 16u, offsets[c]);
         mcd_test_wr_u32(records + 48u * c + 20u, sizes[c]);
-        mcd_test_wr_u32(records + 48u * c + 40u, (uint32_t)(ALIGN16(48u * nodes) + ALIGN16(292u)));
+        mcd_test_wr_u32(records + 48u * c + 40u, (uint32_t)(ALIGN16(48u * nodes) + ALIGN16(version == 4u ? 308u : 292u)));
     }
     if (one_frame) {
         mcd_test_wr_u32(records + 24u, 1); /* and its duration 0 */
@@ -358,7 +386,7 @@ static uint8_t* rewrite_asset(const mcd_test_file* src, uint32_t shift, enum fau
  * the time of a frame, in seconds and binary32, maps back to the frame only nearly, and
  * platforms round the cubic near s = 0 differently (s390x contracts into FMA); a wrong key
  * is a step (0.01) off. */
-static void check_key_values(const uint8_t* asset, size_t size, const char* path) {
+static void check_key_values(const uint8_t* asset, size_t size, const char* path, uint32_t version) {
     mcd_asset a;
     mcd_transform* pose = (mcd_transform*)malloc(sizeof *pose * MAX_NODES);
     void* scratch;
@@ -369,7 +397,7 @@ static void check_key_values(const uint8_t* asset, size_t size, const char* path
     CHECK_RESULT(mcd_open(asset, size, 0, &a), MCD_OK);
     scratch = mcd_test_scratch(&a);
     CHECK_RESULT(mcd_get_clip_info(&a, 0, &info), MCD_OK);
-    make_keys(info.frame_count, &K);
+    make_keys(info.frame_count, &K, version);
     /* The last key is its segment's far end, where the cubic in s = 1 rounds: not exact. */
     for (k = 0; scratch && k + 1u < K.count; ++k) {
         CHECK_RESULT(mcd_sample(&a, 0, (float)((double)K.frame[k] / info.frame_rate), 0, pose, MAX_NODES, scratch),
@@ -383,40 +411,44 @@ static void check_key_values(const uint8_t* asset, size_t size, const char* path
     free(pose);
 }
 
-void test_rma_v3_rules(void) {
+void test_rma_block_rules(void) {
     static const char* const names[FAULTS] = {
         "none", "short escape", "row padding", "data padding", "data_bytes long", "row offset", "first frame",
         "last frame", "row frame back", "q 2^30", "value past 1e7", "byte 3", "shift 0", "shift 7", "byte 1 bit 4",
-        "end padding"};
+        "end padding", "slope on the gaps"};
     mcd_golden* g;
     size_t n = mcd_test_load_golden(&g), i, size;
     int done = 0;
     for (i = 0; i < n && !done; ++i) {
-        uint32_t shift;
+        uint32_t shift, version;
         int f;
         mcd_clip_info info;
         if (!rmal_entry(g[i].file.data, NULL, NULL) || mcd_get_clip_info(&g[i].asset, 0, &info) != MCD_OK ||
             info.codec != MCD_CODEC_RMA || info.frame_count < 200u)
             continue;
         done = 1;
-        for (shift = 1; shift <= 6u; ++shift) {
-            for (f = 0; f < FAULTS; ++f) {
-                uint8_t* asset = rewrite_asset(&g[i].file, shift, (enum fault)f, 0, &size);
-                mcd_result r;
-                if (!asset) {
-                    FAIL("%s: cannot rewrite", g[i].file.path);
-                    continue;
+        for (version = 3; version <= 4u; ++version) {
+            for (shift = 1; shift <= 6u; ++shift) {
+                for (f = 0; f < FAULTS; ++f) {
+                    uint8_t* asset;
+                    mcd_result r;
+                    if (f == GAP_SLOPE && version == 3u) continue; /* version 3's field is k alone */
+                    asset = rewrite_asset(&g[i].file, shift, (enum fault)f, 0, version, &size);
+                    if (!asset) {
+                        FAIL("%s: cannot rewrite", g[i].file.path);
+                        continue;
+                    }
+                    r = mcd_validate(asset, size, 0);
+                    if (f == OK_PAYLOAD) {
+                        CHECK_MSG(r == MCD_OK, "%s, version %u, blocks of %u: the written payload is refused: %s",
+                                  g[i].file.path, version, 1u << shift, mcd_result_string(r));
+                        if (r == MCD_OK) check_key_values(asset, size, g[i].file.path, version);
+                    } else {
+                        CHECK_MSG(r == MCD_ERROR_MALFORMED, "%s, version %u, blocks of %u, %s: %s, want malformed",
+                                  g[i].file.path, version, 1u << shift, names[f], mcd_result_string(r));
+                    }
+                    free(asset);
                 }
-                r = mcd_validate(asset, size, 0);
-                if (f == OK_PAYLOAD) {
-                    CHECK_MSG(r == MCD_OK, "%s, blocks of %u: the written payload is refused: %s", g[i].file.path,
-                              1u << shift, mcd_result_string(r));
-                    if (r == MCD_OK) check_key_values(asset, size, g[i].file.path);
-                } else {
-                    CHECK_MSG(r == MCD_ERROR_MALFORMED, "%s, blocks of %u, %s: %s, want malformed", g[i].file.path,
-                              1u << shift, names[f], mcd_result_string(r));
-                }
-                free(asset);
             }
         }
     }
@@ -431,7 +463,7 @@ void test_rma_v3_rules(void) {
             continue;
         }
         done = 2;
-        asset = rewrite_asset(&g[i].file, 5, OK_PAYLOAD, 1, &size);
+        asset = rewrite_asset(&g[i].file, 5, OK_PAYLOAD, 1, 4u, &size);
         if (asset && mcd_open(asset, size, 0, &a) == MCD_OK && (scratch = mcd_test_scratch(&a)) != NULL) {
             static const float times[4] = {0.0f, -1.0f, 0.5f, 7.0f};
             uint32_t k;

@@ -137,10 +137,13 @@ CASES: dict[str, Case] = {
     # SKEL version 2: rest rotations and a virtual point; two clips that need different scratch
     "spline_rest_pose": Case(lambda: [_bvh("07_01"), _leg()], 1.0, "spline"),
     "rma_rest_pose": Case(lambda: [_bvh("07_01"), _leg()], 1.0, "rma"),
-    # RMAL version 3's dense end: keys one frame apart, wide differences, blocks of 8 keys
+    # RMAL's dense end: keys one frame apart, wide differences, blocks of 8 keys (version 4: slope
+    # predictors and streams of zeros)
     "rma_09_11_dense": Case(lambda: [_bvh("09_11", 120, "09_11_head")], 0.05, "rma", {"block_keys": 8}),
     # rma_rmal2_library and rma_rmal2_rest_pose: rma_library and rma_rest_pose as rma wrote them in
-    # RMAL version 2 (before version 3); no case writes them again, every runtime still reads them.
+    # RMAL version 2 (before version 3); rma_rmal3_library, rma_rmal3_rest_pose and
+    # rma_rmal3_09_11_dense: the three above in RMAL version 3 (before version 4). No case writes
+    # them again; every runtime still reads them.
     # windows of frames: a short first window so the clip has several
     "neural_09_11": Case(lambda: [_bvh("09_11", 90, "09_11_head")], 2.0, "neural", {"window_frames": 40}),
     "fk_wavelet_09_11": Case(lambda: [_bvh("09_11")], 2.0, "fk-wavelet"),

@@ -249,7 +249,7 @@ def _clip_check(check: CheckFn, i: int, prefix: bytes) -> Callable[[bytes], np.n
 CODECS: tuple[Codec, ...] = (
     Codec("spline", 1, b"SPLN", 1, "spline", "SplineSettings", True,
           "per-joint Catmull-Rom keys on a block grid; samples in place, no resident memory"),
-    Codec("rma", 2, b"RMAL", 3, "rma", "RMASettings", False,
+    Codec("rma", 2, b"RMAL", 4, "rma", "RMASettings", False,
           "seed 003: keys placed freely in time, lattice quantization, sampled in place, one section",
           scale=True),
     Codec("rma-pca", 6, b"RMAP", 2, "rma_pca", "RmaPcaSettings", False,

@@ -1,6 +1,6 @@
 """Codec ``rma``: a motion library as per-track Catmull-Rom keys placed freely in time (seed 003
 §5.1), quantized on a step lattice chosen by the tolerance (§5.2), in one ``RMAL`` section
-(docs/FORMAT.md, version 3) that the runtime samples in place.
+(docs/FORMAT.md, version 4) that the runtime samples in place.
 
 It fits with the key-frame engine, like ``spline`` (:mod:`mocodec.keyframes`: compensated
 top-down fitting, per-track budgets, repair through the C runtime), and differs in storage
@@ -52,7 +52,7 @@ class RMASettings(KeyframeSettings):
         else 1 (dense keys).
     block_keys : int, default 32
         Each track's keys come in blocks of this many keys (2, 4 ... 64; docs/FORMAT.md, RMAL
-        version 3): a block costs a row (its first key whole, where its codes start, their Rice
+        version 4): a block costs a row (its first key whole, where its codes start, their Rice
         parameters), and a random access decodes half a block on average. Larger blocks take
         fewer bytes and make random access slower; playback in order costs the same.
     """
@@ -96,7 +96,7 @@ def curve_track(t: Track) -> CurveTrack:
 
 def serialize(motion: Motion, tracks: list[Track], block_keys: int = DEFAULT_BLOCK_KEYS,
               written: WrittenTracks | None = None) -> bytes:
-    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 3), keys in blocks of
+    """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 4), keys in blocks of
     ``block_keys``; ``written``: the tracks of this clip's previous payload, not packed again
     where unchanged."""
     rows, constants, animated = node_modes(motion, tracks)

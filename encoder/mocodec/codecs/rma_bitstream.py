@@ -1,8 +1,8 @@
-"""The ``RMAL`` payload (docs/FORMAT.md), versions 2 and 3: what the runtime samples in place.
+"""The ``RMAL`` payload (docs/FORMAT.md), versions 2, 3 and 4: what the runtime samples in place.
 
-Version 3 (what ``rma`` writes) codes each track's keys in blocks (:mod:`.rma_blocks`). Version 2
-(``rma-pca``'s curve sets, and ``rma`` before version 3) lays every part of a track out for
-direct reads, so that any key costs a few reads wherever it lies:
+Versions 3 and 4 (version 4 is what ``rma`` writes) code each track's keys in blocks
+(:mod:`.rma_blocks`). Version 2 (``rma-pca``'s curve sets, and ``rma`` before version 3) lays
+every part of a track out for direct reads, so that any key costs a few reads wherever it lies:
 
 - key times are cells of ``2**cell_shift`` frames (frame 0 and the last frame are cells of
   their own) written in unary, a one per key and a zero closing each cell, with a rank table

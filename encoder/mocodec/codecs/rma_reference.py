@@ -1,4 +1,4 @@
-"""A reference decoder of the ``RMAL`` payload, versions 2 and 3, written from docs/FORMAT.md.
+"""A reference decoder of the ``RMAL`` payload, versions 2, 3 and 4, written from docs/FORMAT.md.
 
 For tests only: it checks the format document and the C runtime against each other (they
 must agree to float32 precision). It reads every key of every track in index order, the way
@@ -42,9 +42,10 @@ def _unzigzag(z: int) -> int:
     return z >> 1 if z % 2 == 0 else -(z >> 1) - 1
 
 
-def _blocks_track(payload: bytes, pos: int, t: dict, frames: int) -> int:
-    """Version 3: a track's rows and Rice-coded blocks from ``pos``; fills ``t`` and returns
-    where the next track starts."""
+def _blocks_track(payload: bytes, pos: int, t: dict, frames: int, version: int) -> int:
+    """Versions 3 and 4: a track's rows and Rice-coded blocks from ``pos``; fills ``t`` and
+    returns where the next track starts. Version 4's fields: k in bits 0-3 (15: a stream of
+    zeros, no codes), a component's slope predictor in bit 4."""
     d, K, B = t["d"], t["K"], 1 << t["block_shift"]
     rows = (K + B - 1) // B
     fb = _bits_for(frames - 1)
@@ -68,20 +69,25 @@ def _blocks_track(payload: bytes, pos: int, t: dict, frames: int) -> int:
             q[j, c] = _signed(read_bits(table, bit, t["abits"][c]), t["abits"][c])
             bit += t["abits"][c]
         at, k = fields[1], fields[2:]
+        slope = [version == 4 and bool(f & 16) for f in k]
+        if version == 4:
+            k = [None if f & 15 == 15 else f & 15 for f in k]  # None: a stream of zeros
+        before = [0] * d  # the difference into the key before; 0 at the block's first key
         for j in range(e * B + 1, min(K, e * B + B)):
-            gap, at = _rice(data, at, k[0])
+            gap, at = (0, at) if k[0] is None else _rice(data, at, k[0])
             key_frames[j] = key_frames[j - 1] + gap + 1
             for c in range(d):
-                z, at = _rice(data, at, k[1 + c])
-                q[j, c] = q[j - 1, c] + _unzigzag(z)
+                z, at = (0, at) if k[1 + c] is None else _rice(data, at, k[1 + c])
+                before[c] = _unzigzag(z) + (before[c] if slope[1 + c] else 0)
+                q[j, c] = q[j - 1, c] + before[c]
     t.update(frames=key_frames, q=q)
     return pos + t["data_bytes"]
 
 
-def decode_keys(payload: bytes, version: int = 3) -> tuple[dict, list[dict]]:
+def decode_keys(payload: bytes, version: int = 4) -> tuple[dict, list[dict]]:
     """The payload's header fields and, per track, its kind, key frames (K,), lattice
     integers (K, d), steps (d,), reference and axis, and where its parts start (``parts``:
-    byte offsets; version 2: the bitmap, rank table, group table and data area; version 3:
+    byte offsets; version 2: the bitmap, rank table, group table and data area; versions 3 and 4:
     the row table and data area)."""
     size, frames, nodes, ntracks, nconst = struct.unpack_from("<IIIII", payload)
     pos = 32
@@ -110,8 +116,8 @@ def decode_keys(payload: bytes, version: int = 3) -> tuple[dict, list[dict]]:
         pos += _DESC_SIZE[kind]
     pos = (pos + 3) // 4 * 4
     for t in descs:
-        if version == 3:
-            pos = _blocks_track(payload, pos, t, frames)
+        if version in (3, 4):
+            pos = _blocks_track(payload, pos, t, frames, version)
             continue
         d, K, G = t["d"], t["K"], 1 << t["group_shift"]
         # Key times: the unary cells, the rank table (not needed reading in order), the places.
@@ -177,7 +183,7 @@ def decode_keys(payload: bytes, version: int = 3) -> tuple[dict, list[dict]]:
     return header, descs
 
 
-def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray, version: int = 3) -> tuple[np.ndarray, ...]:
+def decode_payload(payload: bytes, skeleton: Skeleton, x: np.ndarray, version: int = 4) -> tuple[np.ndarray, ...]:
     """Local rotations (len(x), N, 4), translations and scales (len(x), N, 3) at frame
     positions x of a version ``version`` payload."""
     header, descs = decode_keys(payload, version)
