@@ -287,7 +287,7 @@ def _set_bit(payload: bytes, bit: int) -> tuple[int, bytes]:
 
 
 def test_inconsistent_payloads_are_rejected_at_open(library):
-    """One rule of the RMAL v3 payload broken at a time, the checksum rewritten."""
+    """One rule of the RMAL v4 payload broken at a time, the checksum rewritten."""
     _, result = library
     start, payload = _payloads(result.asset)[1]
     frames = struct.unpack_from("<I", payload, 4)[0]
@@ -556,7 +556,7 @@ def test_reused_track_bytes_equal_fresh_ones(layout):
 
 @pytest.mark.parametrize("shift", [1, 2, 3, 4, 5, 6])
 def test_block_writer_and_reference_agree_on_every_key(shift):
-    """RMAL v3 as written is what the format document says (the reference decoder): every key's
+    """RMAL v4 as written is what the format document says (the reference decoder): every key's
     frame and lattice integers, for every block size, with escaped codes (a jump of 2**29 steps
     among steps of tens), a gap of most of the clip, a last block of one key and a one-frame clip."""
     from mocodec.codecs.rma_bitstream import KIND_MRP, KIND_SCALE, KIND_TWIST, Blocks, CurveTrack, payload

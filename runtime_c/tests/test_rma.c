@@ -454,6 +454,7 @@ void test_rma_block_rules(void) {
     }
     /* A one-frame clip: one key, row 0 alone, no codes; every time samples it. */
     for (i = 0; i < n && done == 1; ++i) {
+        uint32_t version;
         uint8_t* asset;
         mcd_asset a;
         mcd_transform* pose = (mcd_transform*)malloc(sizeof *pose * MAX_NODES);
@@ -463,19 +464,21 @@ void test_rma_block_rules(void) {
             continue;
         }
         done = 2;
-        asset = rewrite_asset(&g[i].file, 5, OK_PAYLOAD, 1, 4u, &size);
-        if (asset && mcd_open(asset, size, 0, &a) == MCD_OK && (scratch = mcd_test_scratch(&a)) != NULL) {
-            static const float times[4] = {0.0f, -1.0f, 0.5f, 7.0f};
-            uint32_t k;
-            for (k = 0; k < 4u; ++k) {
-                CHECK_RESULT(mcd_sample(&a, 0, times[k], 0, pose, MAX_NODES, scratch), MCD_OK);
-                CHECK(pose[0].translation[0] == (float)(-7.0 * (double)STEP));
+        for (version = 3; version <= 4u; ++version) {
+            asset = rewrite_asset(&g[i].file, 5, OK_PAYLOAD, 1, version, &size);
+            if (asset && mcd_open(asset, size, 0, &a) == MCD_OK && (scratch = mcd_test_scratch(&a)) != NULL) {
+                static const float times[4] = {0.0f, -1.0f, 0.5f, 7.0f};
+                uint32_t k;
+                for (k = 0; k < 4u; ++k) {
+                    CHECK_RESULT(mcd_sample(&a, 0, times[k], 0, pose, MAX_NODES, scratch), MCD_OK);
+                    CHECK(pose[0].translation[0] == (float)(-7.0 * (double)STEP));
+                }
+                mcd_test_free_scratch(scratch);
+            } else {
+                FAIL("%s: the one-frame payload of version %u is refused", g[i].file.path, version);
             }
-            mcd_test_free_scratch(scratch);
-        } else {
-            FAIL("%s: the one-frame payload is refused", g[i].file.path);
+            free(asset);
         }
-        free(asset);
         free(pose);
     }
     CHECK_MSG(done == 2, "no golden of codec rma with a clip of 200 frames or more");

@@ -278,10 +278,10 @@ class Groups:
 
 @dataclass(frozen=True)
 class Blocks:
-    """Version 3's key layout: Rice-coded blocks of ``2**shift`` keys (:mod:`.rma_blocks`)."""
+    """Version 4's key layout: Rice-coded blocks of ``2**shift`` keys (:mod:`.rma_blocks`)."""
 
     shift: int = DEFAULT_BLOCK_KEYS.bit_length() - 1
-    version = 3
+    version = 4
 
 
 def _checked_keys(t: CurveTrack, frame_count: int) -> tuple[np.ndarray, np.ndarray]:

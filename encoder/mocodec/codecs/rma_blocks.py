@@ -127,8 +127,8 @@ def track_body(frames: np.ndarray, q: np.ndarray, abits: np.ndarray, frame_count
     widths = [bits_for(frame_count - 1), offset_bits] + [PARAM_BITS] * (d + 1) + [int(a) for a in abits]
     table = fields_bytes(np.concatenate(cols, axis=1).ravel(), np.tile(widths, rows))
     unary, uw, low, lw = rice_fields(z, k[block])
-    none = zero[block]  # a stream of zeros has no codes
-    uw, lw = np.where(none, 0, uw), np.where(none, 0, lw)
+    none = zero[block]  # a stream of zeros has no codes: fields of width 0, value 0
+    unary, uw, low, lw = (np.where(none, 0, a) for a in (unary, uw, low, lw))
     data = fields_bytes(np.stack([unary, low], -1).ravel(), np.stack([uw, lw], -1).ravel())
     assert len(data) == (total + 31) // 32 * 4
     if len(data) > MAX_DATA_BYTES:

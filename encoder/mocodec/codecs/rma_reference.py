@@ -70,6 +70,8 @@ def _blocks_track(payload: bytes, pos: int, t: dict, frames: int, version: int) 
             bit += t["abits"][c]
         at, k = fields[1], fields[2:]
         slope = [version == 4 and bool(f & 16) for f in k]
+        if slope[0]:
+            raise ValueError(f"row {e}: the slope predictor on the frame gaps (FORMAT.md forbids it)")
         if version == 4:
             k = [None if f & 15 == 15 else f & 15 for f in k]  # None: a stream of zeros
         before = [0] * d  # the difference into the key before; 0 at the block's first key
