@@ -169,6 +169,8 @@ def _gltf_variants() -> list[tuple[str, str, bytes, str]]:
         ("accessor index out of range", edited(lambda d: sampler(d).update(input=999)), "refuse"),
         ("accessor count past its buffer", edited(lambda d: out_acc(d).update(count=10 ** 9)), "refuse"),
         ("accessor count negative", edited(lambda d: out_acc(d).update(count=-1)), "refuse"),
+        ("accessor of zeros (no bufferView) with count 10**9",
+         edited(lambda d: (out_acc(d).pop("bufferView", None), out_acc(d).update(count=10 ** 9))), "refuse"),
         ("unknown interpolation", edited(lambda d: sampler(d).update(interpolation="BEZIER")), "refuse"),
         ("bad base64 buffer", edited(lambda d: d["buffers"][-1].update(uri="data:application/gltf-buffer;base64,@@@")), "refuse"),
         ("byteLength past the data", edited(lambda d: d["buffers"][-1].update(byteLength=10 ** 8)), "refuse"),

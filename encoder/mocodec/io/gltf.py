@@ -169,6 +169,11 @@ class _Reader:
         width = _TYPES[a.type]
         elem = np.dtype(dtype).itemsize * width
         if a.bufferView is None:
+            # All zeros (sparse may replace some): no bytes bound the count, so the format's
+            # frame limit does (a rotation a frame: 4 values), before the allocation.
+            if a.count * width > 4 * limits.MAX_FRAMES:
+                raise self.error(item, f"count {a.count:,} of {width} values with no bufferView (zeros) is "
+                                       f"more than the {4 * limits.MAX_FRAMES:,} values a clip can use")
             values = np.zeros((a.count, width))
         else:
             data, start, length, stride = self._view_bytes(a.bufferView, item)
