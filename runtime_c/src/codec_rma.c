@@ -192,7 +192,10 @@ static MCD_HOT_INLINE void key_from_codes(const uint8_t* data, uint32_t* bit, co
         }
         to->q[c] = from->q[c] + d;
     }
-    if (D == 3u) to->q[3] = 0;
+    if (D == 3u) {
+        to->q[3] = 0;
+        if (V == 4u) to->d[3] = 0; /* the scratch keeps d[3] too: no unset value goes there */
+    }
 }
 
 /* The key after `from` inside the reader's block into `to` (may be `from`). D and V are
