@@ -564,7 +564,7 @@ static void spline_sample(const mcd_clip_view* v, float x, uint32_t flags, mcd_t
             const track_state* ts = &s.tracks[np->rot_track];
             float val[4];
             track_value(&L, &s, (uint32_t)np->rot_track, x, val);
-            mcd_set_rotation(out[i].rotation, mcd_track_rotation(ts->kind, ts->ref, ts->axis, val));
+            mcd_store_track_rotation(ts->kind, &ts->ref, ts->axis, val, out[i].rotation);
         }
         if (np->trans_track >= 0) {
             float val[4];

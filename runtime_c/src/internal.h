@@ -184,6 +184,36 @@ static inline mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const flo
     return mcd_qmul(tw, mcd_qmul(ref, mcd_mrp_to_quat(val + 1)));
 }
 
+/* SSE, on every x86-64 target, for the quaternion products of sampling and of local -> world.
+ * Each lane does the scalar code's operations in its order, with no fused multiply-add, so
+ * every target samples the same bits (tests/test_sampling.c compares the two paths). */
+#if defined(__SSE__) || defined(_M_X64)
+#include <xmmintrin.h>
+#define MCD_SSE 1
+#define MCD_SHUF(v, a, b, c, d) _mm_shuffle_ps(v, v, _MM_SHUFFLE(d, c, b, a))
+
+/* mcd_qmul lane by lane: r = a.w b + a.x (b.w, -b.z, b.y, -b.x) + a.y (b.z, b.w, -b.x, -b.y)
+ * + a.z (-b.y, b.x, b.w, -b.z), summed in mcd_qmul's order (a negated product is exact). */
+static inline __m128 mcd_qmul_sse(__m128 a, __m128 b) {
+    const __m128 s2 = _mm_setr_ps(0.0f, -0.0f, 0.0f, -0.0f);
+    const __m128 s3 = _mm_setr_ps(0.0f, 0.0f, -0.0f, -0.0f);
+    const __m128 s4 = _mm_setr_ps(-0.0f, 0.0f, 0.0f, -0.0f);
+    __m128 r = _mm_mul_ps(MCD_SHUF(a, 3, 3, 3, 3), b);
+    r = _mm_add_ps(r, _mm_mul_ps(MCD_SHUF(a, 0, 0, 0, 0), _mm_xor_ps(MCD_SHUF(b, 3, 2, 1, 0), s2)));
+    r = _mm_add_ps(r, _mm_mul_ps(MCD_SHUF(a, 1, 1, 1, 1), _mm_xor_ps(MCD_SHUF(b, 2, 3, 0, 1), s3)));
+    return _mm_add_ps(r, _mm_mul_ps(MCD_SHUF(a, 2, 2, 2, 2), _mm_xor_ps(MCD_SHUF(b, 1, 0, 3, 2), s4)));
+}
+
+/* mcd_qrotate lane by lane (lanes x, y, z; w is ignored). */
+static inline __m128 mcd_qrotate_sse(__m128 q, __m128 v) {
+    const __m128 two = _mm_set1_ps(2.0f);
+    __m128 q1 = MCD_SHUF(q, 1, 2, 0, 3), q2 = MCD_SHUF(q, 2, 0, 1, 3);
+    __m128 t = _mm_mul_ps(two, _mm_sub_ps(_mm_mul_ps(q1, MCD_SHUF(v, 2, 0, 1, 3)), _mm_mul_ps(q2, MCD_SHUF(v, 1, 2, 0, 3))));
+    __m128 c = _mm_sub_ps(_mm_mul_ps(q1, MCD_SHUF(t, 2, 0, 1, 3)), _mm_mul_ps(q2, MCD_SHUF(t, 1, 2, 0, 3)));
+    return _mm_add_ps(_mm_add_ps(v, _mm_mul_ps(MCD_SHUF(q, 3, 3, 3, 3), t)), c);
+}
+#endif
+
 static inline mcd_quat mcd_qconj(mcd_quat q) {
     q.x = -q.x;
     q.y = -q.y;
@@ -207,6 +237,21 @@ static inline void mcd_set_rotation(float out[4], mcd_quat q) {
     out[1] = q.y;
     out[2] = q.z;
     out[3] = q.w;
+}
+
+/* A curve track's rotation at val into out (mcd_track_rotation's bits). */
+static inline void mcd_store_track_rotation(uint32_t kind, const mcd_quat* ref, const float axis[3], const float* val,
+                                            float out[4]) {
+#ifdef MCD_SSE
+    if (kind != 2u) { /* mcd_mrp_to_quat lane by lane, then ref x it */
+        float s = val[0] * val[0] + val[1] * val[1] + val[2] * val[2];
+        __m128 inv = _mm_set1_ps(1.0f / (1.0f + s));
+        __m128 m = _mm_mul_ps(_mm_setr_ps(2.0f * val[0], 2.0f * val[1], 2.0f * val[2], 1.0f - s), inv);
+        _mm_storeu_ps(out, mcd_qmul_sse(_mm_setr_ps(ref->x, ref->y, ref->z, ref->w), m));
+        return;
+    }
+#endif
+    mcd_set_rotation(out, mcd_track_rotation(kind, *ref, axis, val));
 }
 
 /* Catmull-Rom segment [t1, t2] of keys (t0, v0) ... (t3, v3) as Horner coefficients in
@@ -258,6 +303,8 @@ mcd_result mcd_skel_check(const uint8_t* section, uint32_t size);
 /* A node's world transform from its parent's world and its own local transform: rotation
  * p.r x c.r, translation p.t + p.r (p.s * c.t), scale p.s * c.s (`world` may be `local`). */
 void mcd_compose(const mcd_transform* parent, const mcd_transform* local, mcd_transform* world);
+/* The same in scalar code; mcd_compose gives its bits on every target (a test compares them). */
+void mcd_compose_scalar(const mcd_transform* parent, const mcd_transform* local, mcd_transform* world);
 /* Local transforms of every node -> model space, parents first (the skeleton orders them so). */
 void mcd_local_to_world(const uint8_t* skel, uint32_t nodes, mcd_transform* pose);
 /* The identity transform (unit scale). */

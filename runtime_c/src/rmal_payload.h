@@ -158,7 +158,7 @@ static MCD_HOT_INLINE void mcd_rmal_sample(const mcd_clip_view* v, float x, mcd_
         if (np->track[0] >= 0) {
             mcd_rmal_curve* w = (mcd_rmal_curve*)(tracks + track_size * (size_t)np->track[0]);
             value(v->payload, w, x, val);
-            mcd_set_rotation(out[i].rotation, mcd_track_rotation(w->kind, w->ref, w->axis, val));
+            mcd_store_track_rotation(w->kind, &w->ref, w->axis, val, out[i].rotation);
         }
         if (np->track[1] >= 0) {
             value(v->payload, (mcd_rmal_curve*)(tracks + track_size * (size_t)np->track[1]), x, val);

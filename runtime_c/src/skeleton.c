@@ -147,7 +147,8 @@ uint32_t mcd_skeleton_offset(const mcd_asset* asset, uint32_t index) {
 
 /* ---------------------------------------------------------------- local -> world */
 
-void mcd_compose(const mcd_transform* p, const mcd_transform* local, mcd_transform* world) {
+/* The scalar composition: the reference for the SSE path's bits. */
+void mcd_compose_scalar(const mcd_transform* p, const mcd_transform* local, mcd_transform* world) {
     mcd_quat pq = mcd_quat_of(p), wq;
     float t[3], s[3];
     s[0] = p->scale[0] * local->translation[0];
@@ -163,6 +164,32 @@ void mcd_compose(const mcd_transform* p, const mcd_transform* local, mcd_transfo
     world->scale[2] = p->scale[2] * local->scale[2];
     mcd_set_rotation(world->rotation, wq);
 }
+
+#ifdef MCD_SSE
+static void store3(float out[3], __m128 v) {
+    float f[4];
+    _mm_storeu_ps(f, v);
+    out[0] = f[0];
+    out[1] = f[1];
+    out[2] = f[2];
+}
+
+void mcd_compose(const mcd_transform* p, const mcd_transform* local, mcd_transform* world) {
+    __m128 pq = _mm_loadu_ps(p->rotation);
+    __m128 ps = _mm_setr_ps(p->scale[0], p->scale[1], p->scale[2], 0.0f);
+    __m128 lt = _mm_setr_ps(local->translation[0], local->translation[1], local->translation[2], 0.0f);
+    __m128 ls = _mm_setr_ps(local->scale[0], local->scale[1], local->scale[2], 0.0f);
+    __m128 pt = _mm_setr_ps(p->translation[0], p->translation[1], p->translation[2], 0.0f);
+    __m128 wq = mcd_qmul_sse(pq, _mm_loadu_ps(local->rotation));
+    store3(world->translation, _mm_add_ps(pt, mcd_qrotate_sse(pq, _mm_mul_ps(ps, lt))));
+    store3(world->scale, _mm_mul_ps(ps, ls));
+    _mm_storeu_ps(world->rotation, wq);
+}
+#else
+void mcd_compose(const mcd_transform* p, const mcd_transform* local, mcd_transform* world) {
+    mcd_compose_scalar(p, local, world);
+}
+#endif
 
 void mcd_local_to_world(const uint8_t* skel, uint32_t nodes, mcd_transform* pose) {
     uint32_t i;
