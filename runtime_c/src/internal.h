@@ -8,6 +8,16 @@
 
 #include "mocodec.h"
 
+/* No fused multiply-add: every product is rounded, so the SSE path below and every platform's
+ * scalar code give the same bits. GCC's ISO C modes contract nothing already; Clang and MSVC
+ * are told here (GCC rejects the STDC pragma under -Wall; its GNU modes need -ffp-contract=off,
+ * which CMakeLists.txt passes). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(_MSC_VER)
+#pragma fp_contract(off)
+#endif
+
 /* ---------------------------------------------------------------- limits (docs/FORMAT.md) */
 #define MCD_HEADER_SIZE 32u
 #define MCD_SECTION_ENTRY_SIZE 16u
@@ -184,10 +194,11 @@ static inline mcd_quat mcd_track_rotation(uint32_t kind, mcd_quat ref, const flo
     return mcd_qmul(tw, mcd_qmul(ref, mcd_mrp_to_quat(val + 1)));
 }
 
-/* SSE, on every x86-64 target, for the quaternion products of sampling and of local -> world.
- * Each lane does the scalar code's operations in its order, with no fused multiply-add, so
- * every target samples the same bits (tests/test_sampling.c compares the two paths). */
-#if defined(__SSE__) || defined(_M_X64)
+/* SSE, on x86-64 (not 32-bit x86, whose x87 float math rounds differently, nor ARM64EC), for
+ * the quaternion products of sampling and of local -> world. Each lane does the scalar code's
+ * operations in its order, so both paths give the same bits for every result that is not NaN
+ * (tests/test_sampling.c compares them, and checks fixed results on every platform). */
+#if defined(__x86_64__) || (defined(_M_X64) && !defined(_M_ARM64EC))
 #include <xmmintrin.h>
 #define MCD_SSE 1
 #define MCD_SHUF(v, a, b, c, d) _mm_shuffle_ps(v, v, _MM_SHUFFLE(d, c, b, a))
