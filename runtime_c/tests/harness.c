@@ -306,6 +306,12 @@ float mcd_test_rd_f32(const uint8_t* p) {
     return f;
 }
 
+uint32_t mcd_test_f32_bits(float f) {
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    return u;
+}
+
 void mcd_test_wr_u32(uint8_t* p, uint32_t v) {
     p[0] = (uint8_t)v;
     p[1] = (uint8_t)(v >> 8);

@@ -95,6 +95,7 @@ void mcd_test_fix_crc(uint8_t* asset, size_t size);
 
 uint32_t mcd_test_rd_u32(const uint8_t* p);
 float mcd_test_rd_f32(const uint8_t* p); /* little-endian, as the format stores floats */
+uint32_t mcd_test_f32_bits(float f);     /* the float's bit pattern, to write or compare exactly */
 void mcd_test_wr_u32(uint8_t* p, uint32_t v);
 void mcd_test_wr_u16(uint8_t* p, uint16_t v);
 

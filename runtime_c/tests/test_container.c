@@ -161,12 +161,6 @@ typedef struct skel_edit {
     const char* what;
 } skel_edit;
 
-static uint32_t bits(float f) {
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    return u;
-}
-
 #define HDR UINT32_MAX
 #define REST_T 8u
 #define KIND 20u
@@ -204,8 +198,8 @@ static void check_skeleton_edits(const mcd_test_file* f) {
     const skel_edit edits[] = {
         {6, REST_T, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest translation NaN"},
         {6, REST_T + 4, 4, 0x7F800000u, MCD_ERROR_MALFORMED, "rest translation inf"},
-        {6, REST_T + 8, 4, bits(2e7f), MCD_ERROR_MALFORMED, "rest translation 2e7"},
-        {6, REST_T + 8, 4, bits(-1e6f), MCD_OK, "rest translation -1e6"},
+        {6, REST_T + 8, 4, mcd_test_f32_bits(2e7f), MCD_ERROR_MALFORMED, "rest translation 2e7"},
+        {6, REST_T + 8, 4, mcd_test_f32_bits(-1e6f), MCD_OK, "rest translation -1e6"},
         {6, KIND, 1, 3, MCD_ERROR_MALFORMED, "kind 3"},
         {6, KIND, 1, 255, MCD_ERROR_MALFORMED, "kind 255"},
         {6, KIND, 1, 2, MCD_OK, "end site made virtual"},
@@ -227,8 +221,8 @@ static void check_skeleton_edits(const mcd_test_file* f) {
         {HDR, 0, 4, 1025, MCD_ERROR_MALFORMED, "node count 1025"},
         {HDR, 4, 4, 1, MCD_ERROR_MALFORMED, "rest-table flag without the table"},
         {HDR, 4, 4, 2, MCD_ERROR_MALFORMED, "flags bit 1"},
-        {HDR, 8, 4, bits(0.0f), MCD_ERROR_MALFORMED, "cm per unit 0"},
-        {HDR, 8, 4, bits(-1.0f), MCD_ERROR_MALFORMED, "cm per unit -1"},
+        {HDR, 8, 4, mcd_test_f32_bits(0.0f), MCD_ERROR_MALFORMED, "cm per unit 0"},
+        {HDR, 8, 4, mcd_test_f32_bits(-1.0f), MCD_ERROR_MALFORMED, "cm per unit -1"},
         {HDR, 8, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "cm per unit NaN"},
         {HDR, 12, 4, 16u + 38u * SKEL_NODE - 4u, MCD_ERROR_MALFORMED, "string block inside the records"},
     };
@@ -258,8 +252,8 @@ static void check_rest_table_edits(const mcd_test_file* f, uint32_t* checked) {
         {1, REST_R + 12, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest rotation w NaN"},
         {1, REST_R + 4, 4, 0x7F800000u, MCD_ERROR_MALFORMED, "rest rotation y inf"},
         {1, REST_S, 4, 0x7FC00000u, MCD_ERROR_MALFORMED, "rest scale NaN"},
-        {1, REST_S + 4, 4, bits(-2e7f), MCD_ERROR_MALFORMED, "rest scale -2e7"},
-        {1, REST_S + 8, 4, bits(2.5f), MCD_OK, "rest scale 2.5"},
+        {1, REST_S + 4, 4, mcd_test_f32_bits(-2e7f), MCD_ERROR_MALFORMED, "rest scale -2e7"},
+        {1, REST_S + 8, 4, mcd_test_f32_bits(2.5f), MCD_OK, "rest scale 2.5"},
     };
     uint32_t k;
     const uint8_t* e;
@@ -281,11 +275,11 @@ static void check_rest_table_edits(const mcd_test_file* f, uint32_t* checked) {
                 {0.0f, MCD_ERROR_MALFORMED, "0"},           {-1.0f, MCD_OK, "-1"},
             };
             uint32_t c;
-            for (c = 0; c < 4; ++c) mcd_test_wr_u32(copy + at + 4u * c, bits(unit[c]));
+            for (c = 0; c < 4; ++c) mcd_test_wr_u32(copy + at + 4u * c, mcd_test_f32_bits(unit[c]));
             mcd_test_fix_crc(copy, f->size);
             CHECK_RESULT(mcd_validate(copy, f->size, 0), MCD_OK);
             for (c = 0; c < sizeof w / sizeof w[0]; ++c) {
-                mcd_test_wr_u32(copy + at + 12u, bits(w[c].value));
+                mcd_test_wr_u32(copy + at + 12u, mcd_test_f32_bits(w[c].value));
                 mcd_test_fix_crc(copy, f->size);
                 CHECK_MSG(mcd_validate(copy, f->size, 0) == w[c].want, "%s: SKEL rest rotation (0 0 0 %s)", f->path, w[c].what);
             }

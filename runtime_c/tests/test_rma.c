@@ -305,12 +305,7 @@ static size_t write_payload(uint8_t* out, uint32_t frames, uint32_t nodes, uint3
         d[3] = f == BYTE3 ? 1u : 0u;
         mcd_test_wr_u32(d + 4, K.count);
         mcd_test_wr_u32(d + 8, data_bytes);
-        {
-            float step = f == VALUE_TOO_LARGE ? 1.0f : STEP;
-            uint32_t u;
-            memcpy(&u, &step, 4);
-            mcd_test_wr_u32(d + 12, u);
-        }
+        mcd_test_wr_u32(d + 12, mcd_test_f32_bits(f == VALUE_TOO_LARGE ? 1.0f : STEP));
         d[16] = d[17] = d[18] = (uint8_t)ABITS;
         d[19] = 0;
         /* Row table. */

@@ -170,12 +170,6 @@ void test_header_errors(void) {
     mcd_test_free_golden(g, n);
 }
 
-static uint32_t float_bits(float f) {
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    return u;
-}
-
 /* The clip directory's rules (docs/FORMAT.md "CLIP", version 2), each broken alone in clip 0's
  * record with the checksum recomputed, so each answer comes from the rule itself. */
 /* Frame positions are binary32: a clip holds at most 2^24 frames. The record alone decides it
@@ -189,7 +183,7 @@ static void check_frame_limit(const mcd_test_file* f, uint32_t rec, float rate) 
         mcd_asset a;
         if (!edit_begin(&e, f)) return;
         mcd_test_wr_u32(e.bytes + rec + 24, counts[k]);
-        mcd_test_wr_u32(e.bytes + rec + 32, float_bits((float)((double)(counts[k] - 1u) / (double)rate)));
+        mcd_test_wr_u32(e.bytes + rec + 32, mcd_test_f32_bits((float)((double)(counts[k] - 1u) / (double)rate)));
         mcd_test_fix_crc(e.bytes, e.size);
         CHECK_MSG(mcd_open(e.bytes, e.size, MCD_OPEN_PREVALIDATED, &a) == (k == 0 ? MCD_ERROR_MALFORMED : MCD_OK),
                   "%s: frame_count %u under a prevalidated open", f->path, counts[k]);
@@ -230,13 +224,13 @@ void test_clip_directory_errors(void) {
         check_edit(f, rec + 24, 0, 4, 1, MCD_ERROR_MALFORMED, "frame_count 0");
         check_edit(f, rec + 24, frames + 1u, 4, 1, MCD_ERROR_MALFORMED, "frame_count + 1 (duration and payload disagree)");
         check_edit(f, rec + 28, 0, 4, 1, MCD_ERROR_MALFORMED, "frame_rate 0");
-        check_edit(f, rec + 28, float_bits(-rate), 4, 1, MCD_ERROR_MALFORMED, "frame_rate negative");
+        check_edit(f, rec + 28, mcd_test_f32_bits(-rate), 4, 1, MCD_ERROR_MALFORMED, "frame_rate negative");
         check_edit(f, rec + 28, 0x7FC00000u, 4, 1, MCD_ERROR_MALFORMED, "frame_rate NaN");
         check_edit(f, rec + 28, 0x7F800000u, 4, 1, MCD_ERROR_MALFORMED, "frame_rate +inf");
-        check_edit(f, rec + 28, float_bits(100001.0f), 4, 1, MCD_ERROR_MALFORMED, "frame_rate above 100000");
+        check_edit(f, rec + 28, mcd_test_f32_bits(100001.0f), 4, 1, MCD_ERROR_MALFORMED, "frame_rate above 100000");
         /* (frame_count - 1) / rate overflows a float: no finite duration can equal it. */
-        check_edit(f, rec + 28, float_bits(1e-39f), 4, 1, MCD_ERROR_MALFORMED, "frame_rate 1e-39 (duration overflows)");
-        check_edit(f, rec + 32, float_bits(duration * 1.001f), 4, 1, MCD_ERROR_MALFORMED, "duration 0.1% off");
+        check_edit(f, rec + 28, mcd_test_f32_bits(1e-39f), 4, 1, MCD_ERROR_MALFORMED, "frame_rate 1e-39 (duration overflows)");
+        check_edit(f, rec + 32, mcd_test_f32_bits(duration * 1.001f), 4, 1, MCD_ERROR_MALFORMED, "duration 0.1% off");
         check_edit(f, rec + 32, 0x7FC00000u, 4, 1, MCD_ERROR_MALFORMED, "duration NaN");
         check_edit(f, rec + 36, 1, 4, 1, MCD_ERROR_MALFORMED, "clip flags 1");
         check_edit(f, rec + 44, 1, 4, 1, MCD_ERROR_MALFORMED, "clip reserved word 1");
@@ -246,7 +240,7 @@ void test_clip_directory_errors(void) {
         check_edit(f, rec + 40, need + 1u, 4, 1, MCD_ERROR_MALFORMED, "scratch need not a multiple of 16");
         check_edit(f, rec + 40, 0xFFFFFFF0u, 4, 1, MCD_ERROR_MALFORMED, "scratch need 4 GB");
         /* Within the 1e-4 relative tolerance the duration is accepted. */
-        check_edit(f, rec + 32, float_bits(duration * (1.0f + 2e-5f)), 4, 1, MCD_OK, "duration 2e-5 off");
+        check_edit(f, rec + 32, mcd_test_f32_bits(duration * (1.0f + 2e-5f)), 4, 1, MCD_OK, "duration 2e-5 off");
         check_frame_limit(f, rec, rate);
     }
     mcd_test_free_golden(g, n);

@@ -232,12 +232,6 @@ static float any_float(uint32_t* rng) {
     }
 }
 
-static uint32_t float_bits(float f) {
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    return u;
-}
-
 /* The same inputs give these bits on every platform: x86-64 with SSE (gcc, clang), aarch64
  * (gcc) and any build that rounds every product. A build that fuses multiply-adds differs
  * (clang -ffp-contract=fast changes 5 floats of the first composition). */
@@ -265,13 +259,13 @@ static void check_fixed_bits(void) {
         mcd_compose(&parents[i], &locals[i], &w);
         for (k = 0; k < 10u; ++k) {
             float got = k < 4u ? w.rotation[k] : k < 7u ? w.translation[k - 4u] : w.scale[k - 7u];
-            CHECK_MSG(float_bits(got) == composed[i][k], "composition %u float %u: 0x%08x, every platform gives 0x%08x", i,
-                      k, (unsigned)float_bits(got), (unsigned)composed[i][k]);
+            CHECK_MSG(mcd_test_f32_bits(got) == composed[i][k], "composition %u float %u: 0x%08x, every platform gives 0x%08x", i,
+                      k, (unsigned)mcd_test_f32_bits(got), (unsigned)composed[i][k]);
         }
         mcd_store_track_rotation(1u, &refs[i], axis, vals[i], r);
         for (k = 0; k < 4u; ++k)
-            CHECK_MSG(float_bits(r[k]) == rotated[i][k], "track rotation %u float %u: 0x%08x, every platform gives 0x%08x",
-                      i, k, (unsigned)float_bits(r[k]), (unsigned)rotated[i][k]);
+            CHECK_MSG(mcd_test_f32_bits(r[k]) == rotated[i][k], "track rotation %u float %u: 0x%08x, every platform gives 0x%08x",
+                      i, k, (unsigned)mcd_test_f32_bits(r[k]), (unsigned)rotated[i][k]);
     }
 }
 
