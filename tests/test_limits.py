@@ -45,6 +45,49 @@ def test_values_outside_the_format_are_named(motion):
         _encode(dataclasses.replace(motion, frame_time=1e-7))
 
 
+def test_checks_read_a_long_clip_a_run_at_a_time_and_name_the_right_frame(motion, monkeypatch):
+    """The whole-clip checks read runs of frames (mocodec.motion.FRAME_RUN): what is wrong in
+    a later run is found and named with its frame in the clip, as when read whole."""
+    import mocodec.motion
+    from mocodec.codecs import scale_deviation
+    from mocodec.limits import check_motion
+    from mocodec.motion import MotionError
+
+    monkeypatch.setattr(mocodec.motion, "FRAME_RUN", 7)
+    assert motion.frame_count > 5 * 7
+    late = 4 * 7 + 3
+    trans = motion.translations.copy()
+    trans[late, 0, 2] = -2e7
+    with pytest.raises(LimitError, match=f"frame {late + 1}, translation of node 'Hips': -2e\\+07 is outside"):
+        check_motion(dataclasses.replace(motion, translations=trans))
+    offsets = motion.skeleton.offsets.copy()
+    offsets[3, 0] = np.inf
+    with pytest.raises(LimitError, match=f"rest offset of node '{motion.skeleton.names[3]}': inf is not finite"):
+        check_motion(dataclasses.replace(motion, skeleton=dataclasses.replace(motion.skeleton, offsets=offsets)))
+    rot = motion.rotations.copy()
+    rot[late, 4] *= 1.001
+    with pytest.raises(MotionError, match="not unit quaternions"):
+        dataclasses.replace(motion, rotations=rot).validate()
+    rot[late + 3, 2, 0] = np.nan
+    with pytest.raises(MotionError, match="non-finite"):  # found before the norms, as read whole
+        dataclasses.replace(motion, rotations=rot).validate()
+    scales = np.ones_like(motion.translations)
+    scales[late, 5] = [1.0, 1.5, 1.0]
+    scales[2, 4] = [1.2, 1.0, 1.0]
+    assert scale_deviation(dataclasses.replace(motion, scales=scales)) == pytest.approx((0.5, 5))
+    end = int(np.flatnonzero(motion.skeleton.is_end_site)[0])  # no channels: animated only if it moves
+    turned = motion.rotations.copy()
+    turned[late, end] = [0.0, 0.6, 0.0, 0.8]
+    assert not motion.animated()[end, 0] and dataclasses.replace(motion, rotations=turned).animated()[end, 0]
+    moved = motion.translations.copy()
+    moved[:] = motion.skeleton.offsets
+    moved[late, 6, 1] += 1.0
+    animated = dataclasses.replace(motion, translations=moved).animated()
+    expected = [bool(motion.skeleton.position_axes(i)) for i in range(motion.skeleton.node_count)]
+    expected[6] = True
+    assert animated[:, 1].tolist() == expected
+
+
 def test_printable_and_safe_clip_names():
     assert printable("a\x1b[2J\u202e\x07 b") == "a\\x1b[2J\\u202e\\x07 b"
     assert safe_clip_name("walk:1/2\\3\x00") == "walk_1_2_3_"

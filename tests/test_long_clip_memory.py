@@ -42,6 +42,44 @@ def test_rma_encode_of_a_long_clip_allocates_a_bounded_multiple_of_its_raw_data(
     assert peak / raw <= MAX_PEAK_OVER_RAW, f"peak {peak / 1e6:.0f} MB = {peak / raw:.1f}x the raw float32 channels"
 
 
+# The whole-clip checks before the codec runs, and the final evaluation, over the same raw
+# channels (2026-12-07): before, each held temporaries of the clip's size (validate's norms,
+# the scale deviation, the translation limits: 2.7-4.8x at 24,000 CMU frames; the evaluation's
+# shell and angle errors 4.4x); now the checks read runs of mocodec.motion.FRAME_RUN frames and
+# the evaluation keeps only the position errors whole (with np.percentile's copy).
+MAX_CHECK_PEAK_OVER_RAW = 0.1
+MAX_EVALUATE_PEAK_OVER_RAW = 2.2
+
+
+def _peak(f):
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        out = f()
+        return out, tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+
+
+def test_the_whole_clip_checks_and_the_evaluation_of_a_long_clip_hold_little_beside_it():
+    from mocodec import limits
+    from mocodec.codecs import scale_deviation
+    from mocodec.encode import evaluate
+
+    m = long_clip(FRAMES)
+    raw = m.frame_count * m.skeleton.channel_count * 4
+    units = resolve_units(m.skeleton, cm_per_unit=CM_PER_UNIT)
+    for name, check in [("validate", m.validate), ("check_motion", lambda: limits.check_motion(m)),
+                        ("position_reach", lambda: limits.position_reach(m)),
+                        ("scale_deviation", lambda: scale_deviation(m)), ("animated", m.animated)]:
+        _, peak = _peak(check)
+        assert peak / raw <= MAX_CHECK_PEAK_OVER_RAW, f"{name}: {peak / raw:.2f}x the raw float32 channels"
+    asset = encode_motions([m], [units], "rma", Tolerance(1.0)).asset
+    (report,), peak = _peak(lambda: evaluate(asset, [m], [units]))
+    assert 0 < report.max_cm <= 1.0 and report.errors_cm.shape == (FRAMES, m.skeleton.node_count)
+    assert peak / raw <= MAX_EVALUATE_PEAK_OVER_RAW, f"evaluate: {peak / raw:.2f}x the raw float32 channels"
+
+
 @pytest.mark.parametrize("codec", ["rma", "spline"])
 def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, monkeypatch, codec):
     """A long clip's encode streams what a short one holds whole (world rotations, the half-way
@@ -50,6 +88,7 @@ def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, 
     import mocodec.curves
     import mocodec.keyframes
     import mocodec.kinematics
+    import mocodec.motion
     import mocodec.quantize
     import mocodec.runtime
     import mocodec.tolerance
@@ -62,6 +101,7 @@ def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, 
     for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
                          (mocodec.keyframes, "SPAN_CHUNK"),
                          (mocodec.kinematics, "HALFWAY_CHUNK"), (mocodec.kinematics, "POSE_CHUNK"),
+                         (mocodec.motion, "FRAME_RUN"),
                          (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),
                          (mocodec.tolerance, "RATIO_CHUNK")]:
         monkeypatch.setattr(module, name, 97)

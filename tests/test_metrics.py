@@ -74,3 +74,28 @@ def test_combine_over_clips(sample_paths):
         reports.append(ErrorMetric(1.0, 25.0).evaluate(m.skeleton, (rot, pos), (rot, off)))
     c = combine(reports)
     assert c["max_cm"] == pytest.approx(2.0)
+
+
+def test_chunked_evaluation_gives_the_whole_clips_figures(sample_paths):
+    """A clip given a run of frames at a time gives the same figures as given whole (the shell
+    and angle means up to the last bits: running sums)."""
+    m = read_bvh(sample_paths[0])
+    rot, pos = _world(m)
+    turned = rot.copy()
+    turned[:, 3] = quat_multiply(rot[:, 3], quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(3)))
+    off = pos + np.linspace(0.0, 0.5, m.frame_count)[:, None, None]
+    local = m.rotations.copy()
+    local[:, 3] = turned[:, 3]
+    metric = ErrorMetric(5.6444, 25.0)
+    whole = metric.evaluate(m.skeleton, (rot, pos), (turned, off), m.rotations, local)
+    runs = [slice(a, min(a + 97, m.frame_count)) for a in range(0, m.frame_count, 97)]
+    assert len(runs) > 3
+    r = metric.evaluate_chunks(m.skeleton, (((rot[s], pos[s]), (turned[s], off[s]), m.rotations[s], local[s])
+                                            for s in runs))
+    assert (r.max_cm, r.p99_cm, r.mean_cm, r.worst_frame, r.worst_node, r.samples) == \
+        (whole.max_cm, whole.p99_cm, whole.mean_cm, whole.worst_frame, whole.worst_node, whole.samples)
+    assert np.array_equal(r.errors_cm, whole.errors_cm)
+    assert np.array_equal(r.per_node_mean_cm, whole.per_node_mean_cm)
+    assert (r.shell_max_cm, r.angle_max_deg) == (whole.shell_max_cm, whole.angle_max_deg)
+    assert r.shell_mean_cm == pytest.approx(whole.shell_mean_cm, rel=1e-12)
+    assert r.angle_mean_deg == pytest.approx(whole.angle_mean_deg, rel=1e-12) and whole.angle_mean_deg > 0

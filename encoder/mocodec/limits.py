@@ -18,6 +18,8 @@ import unicodedata
 
 import numpy as np
 
+from .motion import frame_runs
+
 MAX_NODES = 1024
 """Nodes (joints, end sites, virtual points) of one skeleton."""
 MAX_CLIPS = 65535
@@ -192,29 +194,38 @@ def check_motion(motion, what: str | None = None) -> None:
     problem = frames_problem(motion.frame_count) or frame_time_problem(motion.frame_time, motion.frame_count)
     if problem:
         raise LimitError(f"{where}: {problem}")
-    for label, values in (("rest offset", sk.offsets), ("translation", motion.translations)):
-        found = value_problem(values)
+    found = value_problem(sk.offsets)
+    if found:
+        at, reason = found
+        raise LimitError(f"{where}: rest offset of node '{printable(sk.names[at[0]])}': "
+                         f"{float(sk.offsets[at]):.6g} {reason}")
+    for rows in frame_runs(motion.frame_count):  # a run of frames at a time: no whole-clip temporaries
+        found = value_problem(motion.translations[rows])
         if found:
             at, reason = found
-            frame = f"frame {at[0] + 1}, " if values.ndim == 3 else ""
-            raise LimitError(f"{where}: {frame}{label} of node '{printable(sk.names[at[-2]])}': "
-                             f"{float(values[at]):.6g} {reason}")
+            frame, node = at[0] + rows.start, at[1]
+            raise LimitError(f"{where}: frame {frame + 1}, translation of node '{printable(sk.names[node])}': "
+                             f"{float(motion.translations[(frame, *at[1:])]):.6g} {reason}")
 
 
 def position_reach(motion) -> float:
     """A bound on every coordinate of every node's world position over the clip (file units):
     the root's largest coordinate plus the longest chain of local translations, each grown by
-    its ancestors' largest scale. One node at a time, so a long clip's frames are not copied."""
+    its ancestors' largest scale. A run of frames at a time, so a long clip's frames are not
+    copied."""
     sk = motion.skeleton
-    reach = np.zeros(sk.node_count)
-    grow = np.ones(sk.node_count)  # largest |scale| product down to each node
+    n = sk.node_count
+    coordinate, length, scale = np.zeros(n), np.zeros(n), np.zeros(n)  # per node, largest over frames
+    for rows in frame_runs(motion.frame_count):
+        tr = motion.translations[rows]
+        np.maximum(coordinate, np.abs(tr).max(axis=(0, 2), initial=0.0), out=coordinate)
+        np.maximum(length, np.sqrt(np.einsum("fnc,fnc->fn", tr, tr)).max(axis=0, initial=0.0), out=length)
+        np.maximum(scale, np.abs(motion.scales[rows]).max(axis=(0, 2), initial=0.0), out=scale)
+    reach = np.zeros(n)
+    grow = np.ones(n)  # largest |scale| product down to each node
     for i, p in enumerate(sk.parents):
-        tr = motion.translations[:, i]
-        if p < 0:
-            reach[i] = float(np.abs(tr).max(initial=0.0))
-        else:
-            reach[i] = reach[p] + grow[p] * float(np.sqrt(np.einsum("fc,fc->f", tr, tr)).max(initial=0.0))
-        grow[i] = (1.0 if p < 0 else grow[p]) * float(np.abs(motion.scales[:, i]).max(initial=0.0))
+        reach[i] = coordinate[i] if p < 0 else reach[p] + grow[p] * length[i]
+        grow[i] = (1.0 if p < 0 else grow[p]) * scale[i]
     return float(reach.max(initial=0.0))
 
 

@@ -110,28 +110,34 @@ class ErrorMetric:
     def evaluate_chunks(self, skeleton: Skeleton, chunks: Iterable[Chunk]) -> ErrorReport:
         """:meth:`evaluate` given the clip a run of frames at a time, in frame order
         (``(original, decoded, original_local, decoded_local)`` each): the same figures, with
-        only the per-sample errors kept of each chunk, so that a long clip's transforms are
-        never held whole."""
-        errs, shells, angles = [], [], []
+        only the per-sample position errors kept of each chunk, so that a long clip's
+        transforms are never held whole. The shell and angle figures are running maxima and
+        sums (their means may differ from a whole-clip mean in the last bits); the position
+        errors are joined as before, so the figures an asset records are the same bits."""
+        errs: list[np.ndarray] = []
+        shell_max, shell_sum = -np.inf, 0.0
+        angle_max, angle_sum = -np.inf, 0.0
+        angles = True
         for (rot_o, pos_o), (rot_d, pos_d), original_local, decoded_local in chunks:
             errs.append(np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit)
-            shells.append(self._shell_errors(rot_o, pos_o, rot_d, pos_d))
-            if original_local is not None and decoded_local is not None and angles is not None:
-                angles.append(np.degrees(quat_angle(original_local, decoded_local)))
+            shell = self._shell_errors(rot_o, pos_o, rot_d, pos_d)
+            if shell.size:
+                shell_max = float(np.maximum(shell_max, shell.max()))  # NaN stays NaN
+                shell_sum += float(shell.sum())
+            if original_local is not None and decoded_local is not None and angles:
+                ang = np.degrees(quat_angle(original_local, decoded_local))
+                if ang.size:
+                    angle_max = float(np.maximum(angle_max, ang.max()))
+                    angle_sum += float(ang.sum())
             else:
-                angles = None
+                angles = False
+        # Joined, not written into one array: the join keeps the chunks' memory order, which
+        # the per-node means below sum along (a different order changes their last bits).
         err = np.concatenate(errs)
         del errs
-        shell = np.concatenate(shells)
-        del shells
         per_node_mean = err.mean(axis=0)
         flat = int(np.argmax(err))
         worst_frame, worst_node = divmod(flat, err.shape[1])
-        if angles is not None:
-            ang = np.concatenate(angles)
-            angle_mean, angle_max = float(ang.mean()), float(ang.max())
-        else:
-            angle_mean = angle_max = float("nan")
         return ErrorReport(
             max_cm=float(err.max()),
             p99_cm=float(np.percentile(err, 99)),
@@ -141,10 +147,10 @@ class ErrorMetric:
             per_node_mean_cm=per_node_mean,
             worst_frame=worst_frame,
             worst_node=worst_node,
-            shell_max_cm=float(shell.max()),
-            shell_mean_cm=float(shell.mean()),
-            angle_mean_deg=angle_mean,
-            angle_max_deg=angle_max,
+            shell_max_cm=shell_max,
+            shell_mean_cm=shell_sum / err.size,
+            angle_mean_deg=angle_sum / err.size if angles else float("nan"),
+            angle_max_deg=angle_max if angles else float("nan"),
             samples=int(err.size),
             errors_cm=err,
         )

@@ -12,7 +12,7 @@ scale ``p.s * c.s``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 
@@ -20,6 +20,23 @@ from . import rotations
 
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 CHANNEL_CODES = {name: code for code, name in enumerate(CHANNEL_NAMES)}
+
+
+FRAME_RUN = 2048
+"""Frames a whole-clip check reads at a time (:func:`frame_runs`): its temporaries stay a few MB
+however long the clip (an hours-long capture, issue 16)."""
+
+
+def frame_runs(frames: int, size: int | None = None) -> Iterator[slice]:
+    """Consecutive slices of at most ``size`` (default :data:`FRAME_RUN`) frames covering
+    ``range(frames)``, in order.
+
+    >>> list(frame_runs(5, 2))
+    [slice(0, 2, None), slice(2, 4, None), slice(4, 5, None)]
+    """
+    size = size or FRAME_RUN
+    for start in range(0, frames, size):
+        yield slice(start, min(start + size, frames))
 
 
 class MotionError(ValueError):
@@ -224,12 +241,15 @@ class Motion:
             raise MotionError("motion has no frames")
         if not (np.isfinite(self.frame_time) and self.frame_time > 0):
             raise MotionError(f"frame time {self.frame_time} is not positive")
-        if not (np.all(np.isfinite(self.rotations)) and np.all(np.isfinite(self.translations))
-                and np.all(np.isfinite(self.scales))):
-            raise MotionError("non-finite values in the motion")
-        norms = np.linalg.norm(self.rotations, axis=-1)
-        if np.max(np.abs(norms - 1.0)) > 1e-6:
-            raise MotionError("rotations are not unit quaternions")
+        # A run of frames at a time, so the temporaries do not grow with the clip.
+        for rows in frame_runs(self.frame_count):
+            if not (np.all(np.isfinite(self.rotations[rows])) and np.all(np.isfinite(self.translations[rows]))
+                    and np.all(np.isfinite(self.scales[rows]))):
+                raise MotionError("non-finite values in the motion")
+        for rows in frame_runs(self.frame_count):
+            norms = np.linalg.norm(self.rotations[rows], axis=-1)
+            if np.max(np.abs(norms - 1.0)) > 1e-6:
+                raise MotionError("rotations are not unit quaternions")
 
     def animated(self) -> np.ndarray:
         """(N, 3) bool: per node, whether the clip may move its rotation, translation and
@@ -241,10 +261,13 @@ class Motion:
         out[:, 0] = [bool(sk.rotation_order(i)) for i in range(n)]
         out[:, 1] = [bool(sk.position_axes(i)) for i in range(n)]
         rest_q = sk.rest_rotations[None]
-        same_q = np.all(self.rotations == rest_q, axis=-1) | np.all(self.rotations == -rest_q, axis=-1)
-        out[:, 0] |= ~np.all(same_q, axis=0)
-        out[:, 1] |= np.any(self.translations != sk.offsets[None], axis=(0, 2))
-        out[:, 2] = np.any(self.scales != sk.rest_scales[None], axis=(0, 2))
+        at_rest = np.ones(n, dtype=bool)
+        for rows in frame_runs(self.frame_count):
+            q = self.rotations[rows]
+            at_rest &= np.all(np.all(q == rest_q, axis=-1) | np.all(q == -rest_q, axis=-1), axis=0)
+            out[:, 1] |= np.any(self.translations[rows] != sk.offsets[None], axis=(0, 2))
+            out[:, 2] |= np.any(self.scales[rows] != sk.rest_scales[None], axis=(0, 2))
+        out[:, 0] |= ~at_rest
         return out
 
     # ----------------------------------------------------------------- channels <-> model

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from ..motion import Motion
+from ..motion import Motion, frame_runs
 from ..tolerance import OverRows, Tolerance, ToleranceNotMet  # noqa: F401  (the codecs' one error type)
 
 if TYPE_CHECKING:
@@ -68,8 +68,11 @@ class UnsupportedMotion(ValueError):
 def scale_deviation(motion: Motion) -> tuple[float, int]:
     """(largest relative difference of any scale from its node's rest scale, that node)."""
     rest = motion.skeleton.rest_scales[None]
-    dev = np.abs(motion.scales - rest) / np.maximum(np.abs(rest), 1e-12)
-    per_node = dev.max(axis=(0, 2)) if dev.size else np.zeros(motion.skeleton.node_count)
+    per_node = np.zeros(motion.skeleton.node_count)
+    for rows in frame_runs(motion.frame_count):  # a run of frames at a time: no whole-clip temporaries
+        dev = np.abs(motion.scales[rows] - rest) / np.maximum(np.abs(rest), 1e-12)
+        if dev.size:
+            np.maximum(per_node, dev.max(axis=(0, 2)), out=per_node)
     node = int(np.argmax(per_node))
     return float(per_node[node]), node
 
