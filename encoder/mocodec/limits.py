@@ -200,12 +200,12 @@ def check_motion(motion, what: str | None = None) -> None:
         raise LimitError(f"{where}: rest offset of node '{printable(sk.names[at[0]])}': "
                          f"{float(sk.offsets[at]):.6g} {reason}")
     for rows in frame_runs(motion.frame_count):  # a run of frames at a time: no whole-clip temporaries
-        found = value_problem(motion.translations[rows])
+        run = motion.translations[rows]
+        found = value_problem(run)
         if found:
             at, reason = found
-            frame, node = at[0] + rows.start, at[1]
-            raise LimitError(f"{where}: frame {frame + 1}, translation of node '{printable(sk.names[node])}': "
-                             f"{float(motion.translations[(frame, *at[1:])]):.6g} {reason}")
+            raise LimitError(f"{where}: frame {rows.start + at[0] + 1}, translation of node "
+                             f"'{printable(sk.names[at[1]])}': {float(run[at]):.6g} {reason}")
 
 
 def position_reach(motion) -> float:

@@ -71,8 +71,7 @@ def scale_deviation(motion: Motion) -> tuple[float, int]:
     per_node = np.zeros(motion.skeleton.node_count)
     for rows in frame_runs(motion.frame_count):  # a run of frames at a time: no whole-clip temporaries
         dev = np.abs(motion.scales[rows] - rest) / np.maximum(np.abs(rest), 1e-12)
-        if dev.size:
-            np.maximum(per_node, dev.max(axis=(0, 2)), out=per_node)
+        np.maximum(per_node, dev.max(axis=(0, 2)), out=per_node)
     node = int(np.argmax(per_node))
     return float(per_node[node]), node
 
