@@ -85,6 +85,7 @@ def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, 
     """A long clip's encode streams what a short one holds whole (world rotations, the half-way
     reference) and works a run of frames at a time; forced onto that path with runs of 97
     frames, a sample clip's asset is the same bytes."""
+    import mocodec.clip_plan
     import mocodec.curves
     import mocodec.keyframes
     import mocodec.kinematics
@@ -99,7 +100,7 @@ def test_the_streamed_long_clip_path_writes_the_short_paths_bytes(sample_paths, 
     short = encode_motions([m], units, codec, Tolerance(1.0)).asset
     monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
     for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
-                         (mocodec.keyframes, "SPAN_CHUNK"),
+                         (mocodec.clip_plan, "SPAN_CHUNK"),
                          (mocodec.kinematics, "HALFWAY_CHUNK"), (mocodec.kinematics, "POSE_CHUNK"),
                          (mocodec.motion, "FRAME_RUN"),
                          (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),

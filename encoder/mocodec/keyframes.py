@@ -25,16 +25,15 @@ from . import rotations as R
 from .codecs import ClipResult
 from .curves import (KIND_MRP, KIND_SCALE, KIND_TRANSLATION, KIND_TWIST, VECTOR_KINDS, CurveTarget,
                      catmull_rom, fit_keys)
-from .kinematics import (held_intervals, interval_motion, shared_world_positions, short_clip,
-                         world_position_chunks, world_rotations)
+from .clip_plan import ROT, SCALE, TRANS, ClipPlan, plan_clip
+from .kinematics import shared_world_positions, short_clip, world_rotations
 from .motion import Motion
-from .quantize import Quantizer
+from .quantize import Quantizer, f32_exact
 from .swing_hemisphere import swing_on_reference_hemisphere
-from .tolerance import (ClipCheck, OverRows, RowTolerance, Tolerance, ToleranceNotMet, TrackReach, ancestors_matrix,
+from .tolerance import (ClipCheck, OverRows, RowTolerance, Tolerance, ToleranceNotMet, TrackReach,
                         budget_multipliers, failing_ratios, initial_budgets, meet_tolerance, tighten)
 
 DIMS = {KIND_MRP: 3, KIND_TWIST: 4, KIND_TRANSLATION: 3, KIND_SCALE: 3}
-ROT, TRANS, SCALE = 0, 1, 2  # the part of a node a track animates (Compensation.track_parts)
 TWIST_MRP_LIMIT = 1.0  # |p| > 1 means more than 180 degrees from the reference: use a twist
 # A rotation that roams everywhere (CMU's thumbs) makes a twist track's parameters jump where its
 # swing passes 180 degrees, many times a clip; MRPs that change hemisphere only past this |p|
@@ -242,11 +241,6 @@ class Fitted:
 
 
 # ------------------------------------------------------------------------ track construction
-def f32_exact(a: np.ndarray) -> np.ndarray:
-    """``a`` rounded to float32, as float64 (what the runtime holds)."""
-    return np.asarray(a, dtype=np.float32).astype(np.float64)
-
-
 def _product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a * b`` of two (F, d) arrays, a broadcast view when both are one row broadcast over the
     frames (a scale at rest below a scale at rest): the same numbers without the F rows."""
@@ -555,114 +549,30 @@ class Compensation:
     and how far its error is carried.
     """
 
-    def __init__(self, motion: Motion, cm_per_unit: float, shell_cm: float) -> None:
+    def __init__(self, motion: Motion, cm_per_unit: float, shell_cm: float, plan: ClipPlan | None = None,
+                 halfway: bool = False) -> None:
         self.motion = motion
         sk = motion.skeleton
         self.frames = motion.frame_count
         # A long clip's world poses are not held (F x N x 7 float64): each target builds its
         # node's rotation and its points' positions along their chains (_world_pose), the
-        # products forward kinematics makes, and the spans below measure them a run of frames at
-        # a time; a short clip's are computed once (the positions shared with the runtime check).
+        # products forward kinematics makes; a short clip's are computed once (the positions
+        # shared with the runtime check and the plan).
         self.chains = [self._chain(i) for i in range(sk.node_count)]
         short = short_clip(motion)
         self.pos_w = shared_world_positions(motion) if short else None
         self.rot_w = world_rotations(motion) if short else None
         scales = motion.scales
         self.scaled = not (scales.ndim == 3 and scales.strides[0] == 0 and np.all(scales[0] == 1.0))
-        self._spans: dict[tuple[int, int], float] = {}
         self.shell = shell_cm / cm_per_unit
-        animated = motion.animated()
-        self.has_rot = [bool(a) for a in animated[:, ROT]]
-        self.has_trans = [bool(a) for a in animated[:, TRANS]]
-        self.has_scale = [bool(a) for a in animated[:, SCALE]]
-        self.aim = self._aim_points()
-        nodes, parts = [], []
-        for i in range(sk.node_count):
-            for part in (ROT, TRANS, SCALE):
-                if animated[i, part]:
-                    nodes.append(i)
-                    parts.append(part)
-        self.track_nodes, self.track_parts = nodes, parts
-        self.reach = self._reach()
+        self.plan = plan or plan_clip(motion, cm_per_unit, shell_cm, self.pos_w, halfway)
+        self.aim = self.plan.aim
+        self.track_nodes, self.track_parts = self.plan.track_nodes, self.plan.track_parts
+        self.reach = self.plan.reach
 
     @property
     def track_is_rot(self) -> list[bool]:
-        return [p == ROT for p in self.track_parts]
-
-    def _aim_points(self) -> list[list[int]]:
-        """Per node i, the nearest descendants in each branch that sit away from it (skipping
-        zero-length bones): the points i's rotation aims. The spans of a node and its children
-        are measured for every node at once, then those of the nodes below a zero-length bone,
-        and so on (one pass over a long clip's poses each)."""
-        sk = self.motion.skeleton
-        frontier = [(i, c) for i in range(sk.node_count) for c in sk.children(i)]
-        while frontier:
-            spans = self._over_frames(lambda pos: np.array(
-                [np.linalg.norm(pos[:, c] - pos[:, i], axis=-1).max() for i, c in frontier]))
-            self._spans.update(zip(frontier, (float(d) for d in spans)))
-            frontier = [(i, g) for (i, c), d in zip(frontier, spans) if not d > 1e-6 for g in sk.children(c)]
-        aims = []
-        for i in range(sk.node_count):
-            out: list[int] = []
-            stack = sk.children(i)
-            while stack:
-                c = stack.pop(0)
-                if self._spans[(i, c)] > 1e-6:
-                    out.append(c)
-                else:
-                    stack.extend(sk.children(c))
-            aims.append(out)
-        return aims
-
-    def _over_frames(self, measure: Callable[[np.ndarray], np.ndarray],
-                     rows_too: bool = False) -> np.ndarray:
-        """The largest of ``measure(positions)`` (an array) over the clip's world positions
-        (F, N, 3), given a run of frames at a time when they are not held (the largest of the
-        runs' largest, the same number); with ``rows_too`` measure takes (positions, rows)."""
-        if self.pos_w is not None:
-            return measure(self.pos_w, slice(None)) if rows_too else measure(self.pos_w)
-        out = None
-        for rows, pos in world_position_chunks(self.motion, SPAN_CHUNK):
-            m = measure(pos, rows) if rows_too else measure(pos)
-            out = m if out is None else np.maximum(out, m)
-        return out
-
-    def _reach(self) -> TrackReach:
-        """Which points each track moves, and by how much per unit of its error. A rotation
-        moves its aim points and their subtrees by the bone length (compensation keeps it from
-        growing further), and a shell vertex of its own."""
-        sk = self.motion.skeleton
-        anc = ancestors_matrix(sk)
-        t = len(self.track_nodes)
-        affects = np.zeros((t, sk.node_count), dtype=bool)
-        lever = np.zeros((t, sk.node_count))
-        for k, (i, part) in enumerate(zip(self.track_nodes, self.track_parts)):
-            if part == TRANS:
-                affects[k, anc[i]] = True
-                lever[k, anc[i]] = 1.0
-                continue
-            if part == SCALE:
-                below = anc[i].copy()
-                below[i] = False
-                # A scale error ds moves a point w away by about |ds| |w| / |s| (s the node's
-                # local scale); where s is near 0 the subtree has shrunk onto the node too.
-                s = np.maximum(np.abs(self.motion.scales[:, i]).min(axis=-1), 1e-2)
-                affects[k, below] = True
-                if below.any():
-                    far = self._over_frames(lambda pos, rows: (
-                        np.linalg.norm(pos[:, below] - pos[:, i:i + 1], axis=-1) / s[rows, None]).max(axis=0), True)
-                    lever[k, below] = np.maximum(far, 1e-9)
-                else:
-                    lever[k, below] = 1e-9
-                continue
-            affects[k, i] = True
-            lever[k, i] = self.shell
-            for c in self.aim[i]:
-                bone = self._spans[(i, c)]
-                below = anc[c]
-                affects[k, below] = True
-                lever[k, below] = np.maximum(lever[k, below], max(bone, self.shell))
-        return TrackReach(affects, lever, np.asarray(self.track_is_rot, dtype=bool))
+        return self.plan.track_is_rot
 
     def rotation_target(self, i: int, parent_rot: np.ndarray | None, pos_i: np.ndarray,
                         rows: np.ndarray | None = None) -> np.ndarray:
@@ -738,10 +648,6 @@ class Compensation:
 TARGET_CHUNK = 8192
 """Frames :meth:`Compensation.rotation_target` fits at a time."""
 
-SPAN_CHUNK = 4096
-"""Frames a long clip's :class:`Compensation` poses at a time to measure its bones' spans."""
-
-
 class KeyframeFitter:
     """Fits a clip's tracks parents first with :class:`Compensation` and repairs them through
     the runtime until the clip meets the tolerance.
@@ -767,13 +673,17 @@ class KeyframeFitter:
         """The clip's payload for fitted ``tracks``."""
         raise NotImplementedError
 
-    def __init__(self, motion: Motion, cm_per_unit: float, settings: KeyframeSettings) -> None:
+    def __init__(self, motion: Motion, cm_per_unit: float, settings: KeyframeSettings,
+                 plan: ClipPlan | None = None) -> None:
+        """``plan``: the clip's whole-clip decisions (:func:`mocodec.clip_plan.plan_clip`, with
+        the held intervals when ``settings.halfway_factor`` > 0), measured here when None."""
         self.motion = motion
         self.settings = settings
         self.frames = motion.frame_count
         self.cm_per_unit = cm_per_unit
         self.tol_units = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
-        self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm)
+        self.compensation = Compensation(motion, cm_per_unit, settings.shell_cm, plan,
+                                         halfway=settings.halfway_factor > 0.0)
         self.mandatory = self.mandatory_keys()
         self._fits = 0
         self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
@@ -897,30 +807,22 @@ class KeyframeFitter:
         sk = self.motion.skeleton
         comp = self.compensation
         budgets0 = initial_budgets(comp.reach, self.tol_units, scale)
-        half = (HalfwayHold(self.motion, comp.pos_w, self.cm_per_unit, self.settings.halfway_factor,
-                            self.tol_units)
+        plan = comp.plan
+        half = (HalfwayHold(plan.held, self.settings.halfway_factor, self.tol_units)
                 if self.settings.halfway_factor > 0.0 and self.frames > 1 else None)
         tracks: dict[tuple[int, int], Track] = {}
         order = []
-        for i, part, b in zip(comp.track_nodes, comp.track_parts, budgets0):
+        for i, part, b, stored in zip(plan.track_nodes, plan.track_parts, budgets0, plan.stored):
+            if not stored:
+                continue  # the rest value on every frame: nothing to store
             if part == ROT:
-                q = self.motion.rotations[:, i]
-                rest = sk.rest_rotations[i]
-                if np.all(q == rest) or np.all(q == -rest):
-                    continue  # the rest rotation on every frame: nothing to store
                 # Values and target come with the first pass (_retarget): no F x 3 zeros till then.
                 t = Track(i, KIND_MRP, np.broadcast_to(np.zeros(3), (self.frames, 3)), None, np.zeros(4),
                           np.zeros(3))
-            elif part == TRANS:
-                tr = self.motion.translations[:, i]
-                if np.all(tr == f32_exact(sk.offsets[i])):
-                    continue
-                t = Track(i, KIND_TRANSLATION, tr.copy(), tr, np.zeros(4), np.zeros(3))
             else:
-                sc = self.motion.scales[:, i]
-                if np.all(sc == f32_exact(sk.rest_scales[i])):
-                    continue
-                t = Track(i, KIND_SCALE, sc.copy(), sc, np.zeros(4), np.zeros(3))
+                v = (self.motion.translations if part == TRANS else self.motion.scales)[:, i]
+                t = Track(i, KIND_TRANSLATION if part == TRANS else KIND_SCALE, v.copy(), v, np.zeros(4),
+                          np.zeros(3))
             t.rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
             t.base_budget = float(b)
             # One number broadcast over the frames until a repair tightens it (read-only: tighten
@@ -995,10 +897,9 @@ class HalfwayHold:
     RELEASE_AFTER = 1
     HOLD_ROUNDS = 20
 
-    def __init__(self, motion: Motion, world: np.ndarray, cm_per_unit: float, factor: float,
-                 tol_units: np.ndarray) -> None:
-        step, turn = interval_motion(motion, world)
-        self.smooth = held_intervals(step, turn, cm_per_unit)
+    def __init__(self, held: np.ndarray, factor: float, tol_units: np.ndarray) -> None:
+        """``held`` (F-1,) bool: the intervals held (:attr:`ClipPlan.held`)."""
+        self.smooth = held
         self.factor = factor
         self.frame_tolerance = tol_units
         self.tolerance = factor * tol_units
@@ -1122,11 +1023,12 @@ def _half_errors(track: Track, at: np.ndarray) -> np.ndarray:
 
 
 def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, check: ClipCheck,
-             fitter_class: type[KeyframeFitter]) -> ClipResult:
+             fitter_class: type[KeyframeFitter], plan: ClipPlan | None = None) -> ClipResult:
     """Encode one clip so that every node's error, measured by ``check``, is within the
-    tolerance on every frame; the smallest payload over ``settings.budget_scales`` wins."""
+    tolerance on every frame; the smallest payload over ``settings.budget_scales`` wins.
+    ``plan``: the clip's whole-clip decisions when already measured (:class:`KeyframeFitter`)."""
     started = time.perf_counter()
-    fitter = fitter_class(motion, cm_per_unit, settings)
+    fitter = fitter_class(motion, cm_per_unit, settings, plan)
     best: ClipResult | None = None
     failures = []
     for scale in settings.budget_scales:

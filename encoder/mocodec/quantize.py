@@ -15,6 +15,11 @@ MAX_BITS = 24
 MAX_STEP = 1e7  # the format's bound on every stored number (docs/FORMAT.md)
 
 
+def f32_exact(a: np.ndarray) -> np.ndarray:
+    """``a`` rounded to float32, as float64 (what the asset stores and the runtime holds)."""
+    return np.asarray(a, dtype=np.float32).astype(np.float64)
+
+
 ROUNDTRIP_CHUNK = 8192
 """Rows a quantizer's roundtrip takes at a time."""
 

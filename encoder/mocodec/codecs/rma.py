@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..clip_plan import ClipPlan
 from ..keyframes import KIND_TWIST, KeyframeFitter, KeyframeSettings, Track, fit_clip, node_modes
 from ..kinematics import forward_kinematics
 from ..motion import Motion
@@ -123,9 +124,10 @@ class RMAFitter(KeyframeFitter):
     quantizer_for = staticmethod(StepQuantizer.for_range)
     local_refits = True
 
-    def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings) -> None:
+    def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings,
+                 plan: ClipPlan | None = None) -> None:
         self.split = frame0_jumps(motion, cm_per_unit)
-        super().__init__(motion, cm_per_unit, settings)
+        super().__init__(motion, cm_per_unit, settings, plan)
         self.key_grid = settings.key_grid
         self.written = WrittenTracks()
 
