@@ -46,9 +46,11 @@ def test_rma_encode_of_a_long_clip_allocates_a_bounded_multiple_of_its_raw_data(
 # channels (2026-12-07): before, each held temporaries of the clip's size (validate's norms,
 # the scale deviation, the translation limits: 2.7-4.8x at 24,000 CMU frames; the evaluation's
 # shell and angle errors 4.4x); now the checks read runs of mocodec.motion.FRAME_RUN frames and
-# the evaluation keeps only the position errors whole (with np.percentile's copy).
+# the evaluation summarises the position errors as they come (1.59x here when it kept them whole,
+# with np.percentile's copy; 0.97x since, mostly the frame numbers the runtime is asked for,
+# 8 bytes a frame against this three-node clip's 36 raw).
 MAX_CHECK_PEAK_OVER_RAW = 0.1
-MAX_EVALUATE_PEAK_OVER_RAW = 2.2
+MAX_EVALUATE_PEAK_OVER_RAW = 1.2
 
 
 def _peak(f):
@@ -76,7 +78,7 @@ def test_the_whole_clip_checks_and_the_evaluation_of_a_long_clip_hold_little_bes
         assert peak / raw <= MAX_CHECK_PEAK_OVER_RAW, f"{name}: {peak / raw:.2f}x the raw float32 channels"
     asset = encode_motions([m], [units], "rma", Tolerance(1.0)).asset
     (report,), peak = _peak(lambda: evaluate(asset, [m], [units]))
-    assert 0 < report.max_cm <= 1.0 and report.errors_cm.shape == (FRAMES, m.skeleton.node_count)
+    assert 0 < report.max_cm <= 1.0 and report.errors_cm is None and report.samples == FRAMES * m.skeleton.node_count
     assert peak / raw <= MAX_EVALUATE_PEAK_OVER_RAW, f"evaluate: {peak / raw:.2f}x the raw float32 channels"
 
 

@@ -99,3 +99,56 @@ def test_chunked_evaluation_gives_the_whole_clips_figures(sample_paths):
     assert (r.shell_max_cm, r.angle_max_deg) == (whole.shell_max_cm, whole.angle_max_deg)
     assert r.shell_mean_cm == pytest.approx(whole.shell_mean_cm, rel=1e-12)
     assert r.angle_mean_deg == pytest.approx(whole.angle_mean_deg, rel=1e-12) and whole.angle_mean_deg > 0
+
+
+@pytest.mark.parametrize("samples", [2, 3, 37, 100, 101, 1000, 4096, 99_991])
+def test_summarised_errors_have_the_whole_figures(samples: int) -> None:
+    """A long clip's errors summarised a run at a time (ErrorMetric.evaluate_chunks given the
+    frame count) give the bits the whole array gives: p99 by numpy's linear rule from the
+    largest samples alone, per-node means in numpy's order, the first worst sample."""
+    from mocodec.metrics import _RunningErrors
+
+    rng = np.random.default_rng(samples)
+    nodes = 2 if samples % 4 else 4  # (one node's column numpy sums pairwise: kept, not summarised)
+    frames = samples // nodes
+    err = rng.gamma(2.0, 0.3, (frames, nodes))
+    err[rng.integers(0, frames, 3), 0] = err.max()  # ties for the worst: the first one counts
+    err[: frames // 3] = np.round(err[: frames // 3], 1)  # many equal values around the p99
+    running = _RunningErrors(err.size)
+    for a in range(0, frames, 97):
+        running.add(err[a:a + 97])
+    assert running.p99() == float(np.percentile(err, 99))
+    assert np.array_equal(running.sums / running.rows, err.mean(axis=0))
+    assert running.worst == divmod(int(np.argmax(err)), nodes)
+    assert running.max() == float(err.max()) and np.array_equal(running.maxima, err.max(axis=0))
+
+
+def test_summarised_report_is_the_kept_report(sample_paths) -> None:
+    """evaluate_chunks with the frame count: every figure the same as with the errors kept,
+    and no (F, N) errors held."""
+    m = read_bvh(sample_paths[0])
+    rot, pos = _world(m)
+    turned = rot.copy()
+    turned[:, 3] = quat_multiply(rot[:, 3], quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(3)))
+    off = pos + np.linspace(0.0, 0.5, m.frame_count)[:, None, None]
+    local = m.rotations.copy()
+    local[:, 3] = turned[:, 3]
+    metric = ErrorMetric(5.6444, 25.0)
+    runs = [slice(a, min(a + 97, m.frame_count)) for a in range(0, m.frame_count, 97)]
+
+    c = np.ascontiguousarray  # frame-major, as the runtime decodes (the encoder's evaluation)
+
+    def chunks():
+        return (((rot[s], c(pos[s])), (turned[s], c(off[s])), m.rotations[s], local[s]) for s in runs)
+    kept = metric.evaluate_chunks(m.skeleton, chunks())
+    summed = metric.evaluate_chunks(m.skeleton, chunks(), m.frame_count)
+    assert summed.errors_cm is None
+    for name in ("max_cm", "p99_cm", "mean_cm", "worst_frame", "worst_node", "samples", "shell_max_cm",
+                 "shell_mean_cm", "angle_mean_deg", "angle_max_deg"):
+        assert getattr(summed, name) == getattr(kept, name), name
+    assert np.array_equal(summed.per_node_mean_cm, kept.per_node_mean_cm)
+    assert np.array_equal(summed.per_node_max_cm, kept.per_node_max_cm)
+    with pytest.raises(ValueError, match="summarised"):
+        summed.fraction_under(1.0)
+    assert combine([summed])["p99_cm"] == kept.p99_cm
+    assert combine([summed, kept])["p99_cm"] == kept.p99_cm  # the largest clip p99 (a bound)

@@ -43,8 +43,9 @@ class ErrorReport:
     angle_mean_deg: float
     angle_max_deg: float
     samples: int
-    errors_cm: np.ndarray = field(repr=False)
-    """(F, N) error of every node on every frame."""
+    errors_cm: np.ndarray | None = field(repr=False)
+    """(F, N) error of every node on every frame; None where the evaluation summarised them
+    as they came (a long clip's, :meth:`ErrorMetric.evaluate_chunks`)."""
 
     @property
     def max_pct_height(self) -> float | None:
@@ -57,6 +58,8 @@ class ErrorReport:
 
     def fraction_under(self, threshold_cm: float) -> float:
         """Fraction of (frame, node) samples with error <= threshold."""
+        if self.errors_cm is None:
+            raise ValueError("this report summarised its errors (a long clip's): no per-sample errors kept")
         return float(np.mean(self.errors_cm <= threshold_cm))
 
     def as_dict(self) -> dict[str, float | None]:
@@ -107,19 +110,31 @@ class ErrorMetric:
         """
         return self.evaluate_chunks(skeleton, [(original, decoded, original_local, decoded_local)])
 
-    def evaluate_chunks(self, skeleton: Skeleton, chunks: Iterable[Chunk]) -> ErrorReport:
+    def evaluate_chunks(self, skeleton: Skeleton, chunks: Iterable[Chunk], frames: int | None = None) -> ErrorReport:
         """:meth:`evaluate` given the clip a run of frames at a time, in frame order
-        (``(original, decoded, original_local, decoded_local)`` each): the same figures, with
-        only the per-sample position errors kept of each chunk, so that a long clip's
-        transforms are never held whole. The shell and angle figures are running maxima and
-        sums (their means may differ from a whole-clip mean in the last bits); the position
-        errors are joined as before, so the figures an asset records are the same bits."""
+        (``(original, decoded, original_local, decoded_local)`` each): the same figures, so
+        that a long clip's transforms are never held whole. The shell and angle figures are
+        running maxima and sums (their means may differ from a whole-clip mean in the last
+        bits). The position errors are kept and joined (``errors_cm``), or, given the clip's
+        ``frames``, summarised as they come (:class:`_RunningErrors`: the same bits, without
+        the clip's (F, N) errors and their copy for the percentile; a skeleton of two nodes or
+        more; the per-node means are the same bits when each run's errors are frame-major, as
+        from the runtime's decode, else equal to rounding: numpy sums a node-major array's
+        columns pairwise)."""
         errs: list[np.ndarray] = []
+        # One node's errors are one contiguous column, which numpy sums pairwise, not frame after
+        # frame: kept (F numbers), so that its mean is the same bits too.
+        summarise = frames is not None and skeleton.node_count > 1
+        running = _RunningErrors(frames * skeleton.node_count) if summarise else None
         shell_max, shell_sum = -np.inf, 0.0
         angle_max, angle_sum = -np.inf, 0.0
         angles = True
         for (rot_o, pos_o), (rot_d, pos_d), original_local, decoded_local in chunks:
-            errs.append(np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit)
+            err_part = np.linalg.norm(pos_o - pos_d, axis=-1) * self.cm_per_unit
+            if running is None:
+                errs.append(err_part)
+            else:
+                running.add(err_part)
             shell = self._shell_errors(rot_o, pos_o, rot_d, pos_d)
             if shell.size:
                 shell_max = float(np.maximum(shell_max, shell.max()))  # NaN stays NaN
@@ -131,27 +146,33 @@ class ErrorMetric:
                     angle_sum += float(ang.sum())
             else:
                 angles = False
-        # Joined, not written into one array: the join keeps the chunks' memory order, which
-        # the per-node means below sum along (a different order changes their last bits).
-        err = np.concatenate(errs)
-        del errs
-        per_node_mean = err.mean(axis=0)
-        flat = int(np.argmax(err))
-        worst_frame, worst_node = divmod(flat, err.shape[1])
+        if running is None:
+            # Joined, not written into one array: the join keeps the chunks' memory order, which
+            # the per-node means below sum along (a different order changes their last bits).
+            err = np.concatenate(errs)
+            del errs
+            per_node_mean = err.mean(axis=0)
+            worst_frame, worst_node = divmod(int(np.argmax(err)), err.shape[1])
+            max_cm, p99_cm, per_node_max, size = float(err.max()), float(np.percentile(err, 99)), err.max(axis=0), err.size
+        else:
+            err = None
+            per_node_mean = running.sums / running.rows
+            worst_frame, worst_node = running.worst
+            max_cm, p99_cm, per_node_max, size = running.max(), running.p99(), running.maxima, running.seen
         return ErrorReport(
-            max_cm=float(err.max()),
-            p99_cm=float(np.percentile(err, 99)),
+            max_cm=max_cm,
+            p99_cm=p99_cm,
             mean_cm=float(per_node_mean.mean()),
             height_cm=self.height_units * self.cm_per_unit,
-            per_node_max_cm=err.max(axis=0),
+            per_node_max_cm=per_node_max,
             per_node_mean_cm=per_node_mean,
             worst_frame=worst_frame,
             worst_node=worst_node,
             shell_max_cm=shell_max,
-            shell_mean_cm=shell_sum / err.size,
-            angle_mean_deg=angle_sum / err.size if angles else float("nan"),
+            shell_mean_cm=shell_sum / size,
+            angle_mean_deg=angle_sum / size if angles else float("nan"),
             angle_max_deg=angle_max if angles else float("nan"),
-            samples=int(err.size),
+            samples=int(size),
             errors_cm=err,
         )
 
@@ -168,17 +189,88 @@ class ErrorMetric:
 
 def combine(reports: list[ErrorReport]) -> dict[str, float | None]:
     """Set-level figures over several clips: max of maxima, p99 over all samples, mean of
-    per-clip means weighted by samples (``max_pct_height`` None when no clip has a height)."""
-    all_err = np.concatenate([r.errors_cm.ravel() for r in reports])
+    per-clip means weighted by samples (``max_pct_height`` None when no clip has a height).
+    Where a clip's report summarised its errors (a long clip's) and there are several clips,
+    the p99 is the largest clip p99, a bound on the set's."""
+    if len(reports) == 1:
+        p99 = reports[0].p99_cm
+    elif any(r.errors_cm is None for r in reports):
+        p99 = max(r.p99_cm for r in reports)
+    else:
+        p99 = float(np.percentile(np.concatenate([r.errors_cm.ravel() for r in reports]), 99))
     weights = np.array([r.samples for r in reports], dtype=np.float64)
     return {
         "max_cm": float(max(r.max_cm for r in reports)),
-        "p99_cm": float(np.percentile(all_err, 99)),
+        "p99_cm": p99,
         "mean_cm": float(np.average([r.mean_cm for r in reports], weights=weights)),
         "shell_max_cm": float(max(r.shell_max_cm for r in reports)),
         "max_pct_height": max((r.max_pct_height for r in reports if r.max_pct_height is not None),
                               default=None),
     }
+
+
+class _RunningErrors:
+    """A clip's per-sample position errors summarised a run of frames at a time, to the bits
+    the whole (F, N) array gives: per-node sums in the order numpy's ``mean(axis=0)`` adds
+    (frame after frame), maxima, the first worst sample, and for the 99th percentile only the
+    largest samples it can read (about 1 % of them) with numpy's linear rule."""
+
+    def __init__(self, samples: int) -> None:
+        self.samples = samples
+        self.rows = self.seen = 0
+        self.sums: np.ndarray | None = None
+        self.maxima: np.ndarray | None = None
+        self.worst = (0, 0)
+        self._worst_value: float | None = None
+        # numpy's linear percentile reads the sorted samples at floor((n-1) q) and the next one.
+        self._at = int(np.floor((samples - 1) * 0.99)) if samples else 0
+        self._keep = max(samples - self._at, 1)
+        self._top = np.empty(0)
+
+    def add(self, err: np.ndarray) -> None:
+        if not err.size:
+            return
+        # The running sums go first in the reduction, so each frame is added to them in turn.
+        self.sums = err.sum(axis=0) if self.sums is None else np.add.reduce(np.concatenate((self.sums[None], err)), axis=0)
+        self.maxima = err.max(axis=0) if self.maxima is None else np.maximum(self.maxima, err.max(axis=0))
+        flat = int(np.argmax(err))  # the first NaN, else the first largest
+        value = float(err.flat[flat])
+        best = self._worst_value
+        if best is None or (not np.isnan(best) and (np.isnan(value) or value > best)):
+            self._worst_value = value
+            frame, node = divmod(flat, err.shape[1])
+            self.worst = (self.rows + frame, node)
+        self._top = np.concatenate((self._top, err.ravel()))
+        if len(self._top) > 2 * self._keep + 65536:  # partitioned now and then, not every run
+            self._trim()
+        self.rows += err.shape[0]
+        self.seen += err.size
+
+    def _trim(self) -> None:
+        if len(self._top) > self._keep:
+            cut = len(self._top) - self._keep
+            self._top = np.partition(self._top, cut)[cut:]
+
+    def max(self) -> float:
+        """The largest error (NaN if one is NaN, as ``max`` of the whole)."""
+        if self._worst_value is not None and np.isnan(self._worst_value):
+            return float("nan")
+        return float(self.maxima.max())
+
+    def p99(self) -> float:
+        """``np.percentile(errors, 99)`` of every sample added (NaN if one is NaN)."""
+        if self.seen != self.samples:
+            raise ValueError(f"{self.seen} samples evaluated, {self.samples} expected")
+        if self._worst_value is not None and np.isnan(self._worst_value):
+            return float("nan")
+        self._trim()
+        top = np.sort(self._top)
+        low, high = float(top[0]), float(top[1]) if len(top) > 1 else float(top[0])
+        # numpy's _lerp, in float64 as it computes it.
+        virtual = (self.samples - 1) * 0.99
+        gamma = virtual - np.floor(virtual)
+        diff = high - low
+        return high - diff * (1 - gamma) if gamma >= 0.5 else low + diff * gamma
 
 
 @dataclass
