@@ -76,16 +76,23 @@ def test_combine_over_clips(sample_paths):
     assert c["max_cm"] == pytest.approx(2.0)
 
 
-def test_chunked_evaluation_gives_the_whole_clips_figures(sample_paths):
-    """A clip given a run of frames at a time gives the same figures as given whole (the shell
-    and angle means up to the last bits: running sums)."""
-    m = read_bvh(sample_paths[0])
+def _turned_and_moved(m):
+    """World rotations and positions of ``m``, and a decoding of it: node 3 turned 3 degrees,
+    every point moved further as the clip goes on (its local rotations too)."""
     rot, pos = _world(m)
     turned = rot.copy()
     turned[:, 3] = quat_multiply(rot[:, 3], quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(3)))
     off = pos + np.linspace(0.0, 0.5, m.frame_count)[:, None, None]
     local = m.rotations.copy()
     local[:, 3] = turned[:, 3]
+    return rot, pos, turned, off, local
+
+
+def test_chunked_evaluation_gives_the_whole_clips_figures(sample_paths):
+    """A clip given a run of frames at a time gives the same figures as given whole (the shell
+    and angle means up to the last bits: running sums)."""
+    m = read_bvh(sample_paths[0])
+    rot, pos, turned, off, local = _turned_and_moved(m)
     metric = ErrorMetric(5.6444, 25.0)
     whole = metric.evaluate(m.skeleton, (rot, pos), (turned, off), m.rotations, local)
     runs = [slice(a, min(a + 97, m.frame_count)) for a in range(0, m.frame_count, 97)]
@@ -127,12 +134,7 @@ def test_summarised_report_is_the_kept_report(sample_paths) -> None:
     """evaluate_chunks with the frame count: every figure the same as with the errors kept,
     and no (F, N) errors held."""
     m = read_bvh(sample_paths[0])
-    rot, pos = _world(m)
-    turned = rot.copy()
-    turned[:, 3] = quat_multiply(rot[:, 3], quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(3)))
-    off = pos + np.linspace(0.0, 0.5, m.frame_count)[:, None, None]
-    local = m.rotations.copy()
-    local[:, 3] = turned[:, 3]
+    rot, pos, turned, off, local = _turned_and_moved(m)
     metric = ErrorMetric(5.6444, 25.0)
     runs = [slice(a, min(a + 97, m.frame_count)) for a in range(0, m.frame_count, 97)]
 
