@@ -197,11 +197,13 @@ def halfway_chunks(motion: Motion, chunk: int = HALFWAY_CHUNK) -> Iterator[tuple
     for start in range(0, intervals, chunk):
         stop = min(start + chunk, intervals)
         a, b = slice(start, stop), slice(start + 1, stop + 1)
-        q0, q1 = motion.rotations[a], motion.rotations[b]
+        # Both ends read once (a long clip's are computed from its channels when read).
+        q, t = motion.rotations[start:stop + 1], motion.translations[start:stop + 1]
+        q0, q1 = q[:-1], q[1:]
         dot = np.sum(q0 * q1, axis=-1, keepdims=True)
         rot = q0 + np.where(dot < 0.0, -1.0, 1.0) * q1
         rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
-        trans = 0.5 * (motion.translations[a] + motion.translations[b])
+        trans = 0.5 * (t[:-1] + t[1:])
         if rest_scales:  # 0.5 (s + s) is s: a broadcast row, which forward kinematics skips at 1
             scale = np.broadcast_to(0.5 * (scales[0] + scales[0]), trans.shape)
         else:

@@ -17,6 +17,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from . import rotations
+from .channel_frames import ChannelFrames
 
 CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 CHANNEL_CODES = {name: code for code, name in enumerate(CHANNEL_NAMES)}
@@ -37,6 +38,13 @@ def frame_runs(frames: int, size: int | None = None) -> Iterator[slice]:
     size = size or FRAME_RUN
     for start in range(0, frames, size):
         yield slice(start, min(start + size, frames))
+
+
+CHANNEL_FRAMES_BYTES = 16 << 20
+"""A clip read from channels whose rotations (F x N x 4 float64) would take more than this
+(about 13,000 frames of a 38-node skeleton; no dev clip) keeps its channels instead of its
+rotations and translations (:meth:`Motion.from_channels`): an hours-long capture's motion in
+about a fifth of the memory."""
 
 
 class MotionError(ValueError):
@@ -184,7 +192,9 @@ class Motion:
         Identity for end sites and nodes without rotation channels.
     translations : (F, N, 3) float array
         Local translations, file units: the rest offset, with the position channels
-        substituted on the axes the node has them.
+        substituted on the axes the node has them. A long clip read from channels holds both
+        as :class:`~mocodec.channel_frames.ChannelFrames` (:meth:`from_channels`): index them
+        by frames (and nodes) as arrays; ``np.asarray`` builds the whole array.
     frame_time : float
         Seconds per frame (BVH ``Frame Time``; for glTF the rate it was resampled at).
     name : str
@@ -209,8 +219,10 @@ class Motion:
     source: dict | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        self.rotations = np.asarray(self.rotations, dtype=np.float64)
-        self.translations = np.asarray(self.translations, dtype=np.float64)
+        if not isinstance(self.rotations, ChannelFrames):
+            self.rotations = np.asarray(self.rotations, dtype=np.float64)
+        if not isinstance(self.translations, ChannelFrames):
+            self.translations = np.asarray(self.translations, dtype=np.float64)
         if self.scales is None:  # a read-only view: a clip without scales holds none per frame
             self.scales = np.broadcast_to(self.skeleton.rest_scales, self.translations.shape)
         self.scales = np.asarray(self.scales, dtype=np.float64)
@@ -279,10 +291,17 @@ class Motion:
         frame_time: float,
         name: str = "clip",
     ) -> "Motion":
-        """Build a motion from BVH channel values ``(F, C)`` (degrees, file units)."""
+        """Build a motion from BVH channel values ``(F, C)`` (degrees, file units). A clip
+        whose rotations would take more than :data:`CHANNEL_FRAMES_BYTES` keeps the channels
+        alone: its rotations and translations are :class:`~mocodec.channel_frames.ChannelFrames`,
+        computed where they are indexed (the same numbers)."""
         channels = np.asarray(channels, dtype=np.float64)
         frames = channels.shape[0]
         n = skeleton.node_count
+        if frames * n * 32 > CHANNEL_FRAMES_BYTES:
+            return cls(skeleton, ChannelFrames(channels, skeleton, "rotations"),
+                       ChannelFrames(channels, skeleton, "translations"), float(frame_time), name,
+                       source_channels=channels)
         rot = np.zeros((frames, n, 4))
         rot[..., 3] = 1.0
         trans = np.broadcast_to(skeleton.offsets, (frames, n, 3)).copy()

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..motion import Motion
+from ..channel_frames import ChannelFrames
+from ..motion import Motion, frame_runs
 
 EXTENSION_SUFFIXES = (".so", ".pyd", ".dylib")
 
@@ -53,9 +54,16 @@ def _update_array(h: "hashlib._Hash", a: np.ndarray | None) -> None:
     if a is None:
         h.update(b"none;")
         return
-    a = np.ascontiguousarray(a)
-    h.update(f"{a.dtype.str}{a.shape};".encode())
-    h.update(a.tobytes())
+    if not isinstance(a, ChannelFrames):
+        a = np.asarray(a)
+    h.update(f"{a.dtype.str}{tuple(a.shape)};".encode())
+    if a.ndim == 0:
+        h.update(np.ascontiguousarray(a).tobytes())
+        return
+    # The C-order bytes a run of frames at a time (the same digest as whole): a long clip's
+    # rotations computed from its channels, or a broadcast array, are never made whole.
+    for rows in frame_runs(len(a)):
+        h.update(np.ascontiguousarray(a[rows]).tobytes())
 
 
 def motion_digest(motion: Motion) -> str:

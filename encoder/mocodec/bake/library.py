@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence, overload
 
+from ..channel_frames import ChannelFrames
 from ..motion import Motion
 
 RESIDENT_BYTES = 256 << 20
@@ -25,9 +26,10 @@ small library is read once; past it, clips are read again from their files when 
 
 
 def motion_bytes(motion: Motion) -> int:
-    """The memory of a motion's frame arrays."""
+    """The memory of a motion's frame arrays (a long clip's rotations and translations computed
+    from its channels: what they keep beside the channels)."""
     arrays = (motion.rotations, motion.translations, motion.scales, motion.source_channels)
-    return sum(a.nbytes for a in arrays if a is not None)
+    return sum(a.held_bytes if isinstance(a, ChannelFrames) else a.nbytes for a in arrays if a is not None)
 
 
 @dataclass(frozen=True)
