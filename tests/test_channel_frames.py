@@ -37,7 +37,9 @@ def test_every_index_gives_the_held_numbers(sample_paths, monkeypatch) -> None:
         rows = rng.integers(0, f, 50)
         keys = [slice(None), slice(3, 40), slice(f - 5, None), 0, f - 1, -2, rows, rows.tolist(),
                 (slice(None), 2), (rows, 0), (5, 3), (slice(10, 20), slice(1, 6)), (slice(None), 1, 2),
-                (slice(None), -1), (np.arange(f) % 3 == 0,), (Ellipsis, 0)]
+                (slice(None), -1), (np.arange(f) % 3 == 0,), (Ellipsis, 0), (rows[:3], [0, 1, 2]),
+                (rows[:3], 1, [0, 1, 2]), (slice(None), [0, 2], [0, 1]), (slice(None), np.int64(1)),
+                (rows, np.array(2))]
         for key in keys:
             for part in ("rotations", "translations"):
                 want, got = getattr(held, part)[key], getattr(lazy, part)[key]
@@ -56,6 +58,22 @@ def test_computed_frames_are_read_only_and_pickle(sample_paths, monkeypatch) -> 
     assert np.array_equal(back.translations[7:9, 0], held.translations[7:9, 0])
 
 
+def _whole_digest(m: Motion) -> str:
+    """motion_digest as it was before it read runs of frames (each array hashed whole), so
+    that caches written before still match."""
+    import hashlib
+    import json
+    sk = m.skeleton
+    h = hashlib.sha256()
+    h.update(json.dumps([sk.names, sk.channels, repr(float(m.frame_time))]).encode())
+    for a in (sk.parents, sk.offsets, sk.is_end_site, sk.rest_rotations, sk.rest_scales, sk.is_virtual,
+              m.rotations, m.translations, m.scales, m.source_channels):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape};".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
 def test_bake_cache_digest_and_memory_of_a_clip_computed_from_channels(sample_paths, monkeypatch) -> None:
     """A clip computed from its channels has the digest of the same clip held whole (a bake
     cache keeps its entries), and counts the memory it keeps, not the whole arrays'."""
@@ -64,7 +82,7 @@ def test_bake_cache_digest_and_memory_of_a_clip_computed_from_channels(sample_pa
 
     monkeypatch.setattr(mocodec.motion, "FRAME_RUN", 11)  # the digest reads runs of frames
     held, lazy = _both(sample_paths[1], monkeypatch)
-    assert motion_digest(lazy) == motion_digest(held)
+    assert motion_digest(lazy) == motion_digest(held) == _whole_digest(held)
     f, n = held.frame_count, held.skeleton.node_count
     assert motion_bytes(lazy) < motion_bytes(held) - f * n * 7 * 8 + f * n
 
@@ -91,18 +109,42 @@ def test_signs_follow_the_whole_clip(monkeypatch) -> None:
 
 def test_a_long_clip_from_channels_encodes_without_its_whole_frames(sample_paths, monkeypatch) -> None:
     """The long-clip encode path reads a clip computed from its channels a run of frames or a
-    node at a time, never whole, and writes the bytes of the clip held whole."""
+    node at a time, never whole, and writes the bytes of the clip held whole (every run
+    shrunk to 97 frames, so that a sample clip is many runs)."""
+    import mocodec.clip_plan
+    import mocodec.curves
+    import mocodec.keyframes
     import mocodec.kinematics
+    import mocodec.quantize
+    import mocodec.runtime
+    import mocodec.tolerance
     from mocodec.encode import encode_motions
     from mocodec.tolerance import Tolerance
     from mocodec.units import resolve_units
 
     held, lazy = _both(sample_paths[0], monkeypatch)
     units = [resolve_units(held.skeleton, "cmu")]
+    run = 97
     monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
+    for module, name in [(mocodec.curves, "CURVE_CHUNK"), (mocodec.keyframes, "TARGET_CHUNK"),
+                         (mocodec.clip_plan, "SPAN_CHUNK"), (mocodec.kinematics, "HALFWAY_CHUNK"),
+                         (mocodec.kinematics, "POSE_CHUNK"), (mocodec.motion, "FRAME_RUN"),
+                         (mocodec.runtime, "CHUNK_FRAMES"), (mocodec.quantize, "ROUNDTRIP_CHUNK"),
+                         (mocodec.tolerance, "RATIO_CHUNK")]:
+        monkeypatch.setattr(module, name, run)
+    assert held.frame_count > 3 * run
     want = encode_motions([held], units, "rma", Tolerance(1.0)).asset
 
     def whole(self, *args, **kwargs):
         raise AssertionError(f"the long-clip path built the clip's whole {self.part}")
+    read = ChannelFrames.__getitem__
+
+    def bounded(self, key):
+        out = read(self, key)
+        # A node's column over the clip is F x 4 numbers; more frames than a run (and its
+        # neighbour) of more than one node is the clip's frames built whole.
+        assert out.ndim < 3 or out.shape[0] <= run + 1, (self.part, out.shape)
+        return out
     monkeypatch.setattr(ChannelFrames, "__array__", whole)
+    monkeypatch.setattr(ChannelFrames, "__getitem__", bounded)
     assert encode_motions([lazy], units, "rma", Tolerance(1.0)).asset == want

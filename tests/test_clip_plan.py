@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import mocodec.clip_plan
+import mocodec.keyframes
 import mocodec.motion
 from mocodec import rotations as R
 from mocodec.clip_plan import ROT, TRANS, ClipPlan, plan_clip
@@ -80,7 +81,7 @@ def test_tracks_at_rest_are_not_stored(monkeypatch: pytest.MonkeyPatch) -> None:
     assert stored[(0, TRANS)] is True and stored[(1, ROT)] is True and stored[(3, ROT)] is True
 
 
-def test_a_given_plan_makes_the_same_asset(sample_paths: list) -> None:
+def test_a_given_plan_makes_the_same_asset(sample_paths: list, monkeypatch: pytest.MonkeyPatch) -> None:
     m = read_bvh(sample_paths[1])
     settings = RMASettings(tolerance=Tolerance(1.0))
     cm = 2.54
@@ -90,5 +91,15 @@ def test_a_given_plan_makes_the_same_asset(sample_paths: list) -> None:
     def check(payload: bytes, **how: object) -> object:
         return runtime(0, payload, prefix, **how)
     measured = fit_clip(m, cm, settings, check, RMAFitter)
+
+    def no_plan(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the fitter measured a plan it was given")
+    monkeypatch.setattr(mocodec.keyframes, "plan_clip", no_plan)
     given = fit_clip(m, cm, settings, check, RMAFitter, plan)
     assert given.payload == measured.payload
+    other = plan_clip(m.slice(0, m.frame_count - 1), cm, settings.shell_cm, halfway=True)
+    with pytest.raises(ValueError, match="plan given is of a clip of"):
+        fit_clip(m, cm, settings, check, RMAFitter, other)
+    unheld = plan_clip(m, cm, settings.shell_cm, halfway=False)
+    with pytest.raises(ValueError, match="without held intervals"):
+        fit_clip(m, cm, settings, check, RMAFitter, unheld)

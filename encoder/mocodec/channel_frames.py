@@ -10,6 +10,7 @@ byte a node a frame.
 """
 from __future__ import annotations
 
+import operator
 from typing import Any
 
 import numpy as np
@@ -23,8 +24,9 @@ SIGN_RUN = 65536
 class ChannelFrames:
     """(F, N, 4) local rotations or (F, N, 3) local translations of a clip, computed from its
     channels when indexed: ``a[rows]``, ``a[rows, node]``, ``a[:, node]`` and further indices
-    after those give what the held array would (``rows`` an int, a slice or an index array);
-    ``np.asarray(a)`` builds the whole array. Read-only."""
+    after those give what the held array would (``rows`` an int, a slice, an index or a bool
+    array), computing only those rows and nodes; keys numpy would broadcast together (two index
+    arrays), ``...`` or ``None``, and ``np.asarray(a)``, build the whole array. Read-only."""
 
     def __init__(self, channels: np.ndarray, skeleton: Any, part: str) -> None:
         """``part``: ``"rotations"`` or ``"translations"``; ``skeleton`` a
@@ -78,6 +80,9 @@ class ChannelFrames:
         return len(self.channels)
 
     def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+        if copy is False:
+            raise ValueError(f"a long clip's {self.part} are computed from its channels: no array to "
+                             "share without building it")
         whole = self[:]
         return whole if dtype is None else whole.astype(dtype, copy=False)
 
@@ -93,39 +98,52 @@ class ChannelFrames:
 
     def __getitem__(self, key: Any) -> np.ndarray:
         key = key if isinstance(key, tuple) else (key,)
-        if any(k is Ellipsis or k is None for k in key) or len(key) > 3:
-            return np.asarray(self)[key]
+        arrays = sum(1 for k in key if not isinstance(k, slice) and np.ndim(k) > 0)
+        if any(k is Ellipsis or k is None for k in key) or len(key) > 3 or arrays > 1:
+            return np.asarray(self)[key]  # numpy's rules for indices that broadcast together
         rows, node_key, rest = key[0], (key[1] if len(key) > 1 else slice(None)), key[2:]
-        ch = self.channels[rows]  # numpy's own row indexing: int, slice, index or bool array
-        lead = ch.shape[:-1]
-        if isinstance(node_key, (int, np.integer)):
-            node = int(node_key)
+        # The shape numpy's row indexing gives (int, slice, index or bool array), from an empty
+        # array of no columns: nothing copied.
+        lead = np.empty((len(self.channels), 0))[rows].shape[:-1]
+        if not isinstance(node_key, slice) and np.ndim(node_key) == 0:
+            node = operator.index(node_key)
             if not -self._nodes <= node < self._nodes:
                 raise IndexError(f"node {node} is out of bounds for {self._nodes} nodes")
-            out = self._node(rows, ch, node % self._nodes)
+            out = self._node(rows, lead, node % self._nodes)
         else:
             nodes = np.arange(self._nodes)[node_key]
             out = np.empty(lead + (len(nodes), self._width))
             for k, i in enumerate(nodes):
-                out[..., k, :] = self._node(rows, ch, int(i))
+                out[..., k, :] = self._node(rows, lead, int(i))
         return out[(Ellipsis,) + rest] if rest else out
 
     # ------------------------------------------------------------------ the numbers
-    def _node(self, rows: Any, ch: np.ndarray, i: int) -> np.ndarray:
-        """Node i's values on ``rows`` (their channel values ``ch``), as from_channels holds them."""
-        lead = ch.shape[:-1]
+    def _columns(self, rows: Any, cols: list[int]) -> np.ndarray:
+        """The channel values of columns ``cols`` on ``rows`` (index arrays: those columns alone
+        copied, not every channel of the rows)."""
+        if not isinstance(rows, slice) and np.ndim(rows) == 1:
+            at = np.asarray(rows)
+            if at.dtype.kind in "iu":
+                return self.channels[at[:, None], cols]
+        return self.channels[rows][..., cols]
+
+    def _node(self, rows: Any, lead: tuple[int, ...], i: int) -> np.ndarray:
+        """Node i's values on ``rows`` (of shape ``lead``), as from_channels holds them."""
         if self.part == "translations":
             out = np.empty(lead + (3,))
             out[...] = self._offsets[i]
-            for axis, c in self._pos.get(i, ()):
-                out[..., axis] = ch[..., c]
+            pos = self._pos.get(i, ())
+            if pos:
+                values = self._columns(rows, [c for _, c in pos])
+                for k, (axis, _) in enumerate(pos):
+                    out[..., axis] = values[..., k]
             return out
         if i not in self._rot:
             out = np.zeros(lead + (4,))
             out[..., 3] = 1.0
             return out
         cols, order = self._rot[i]
-        q = rotations.euler_to_quat(ch[..., cols], order)
+        q = rotations.euler_to_quat(self._columns(rows, cols), order)
         negated = self._negated[rows, self._column[i]]
         q *= np.where(negated, -1.0, 1.0)[..., None]  # x -1: exact, as from_channels flips
         return q

@@ -247,9 +247,9 @@ it through the runtime.
     reports = evaluate(asset, motions, units, contacts=contacts)
     elapsed = time.perf_counter() - started
     for f, r in zip(facts, reports):
-        over = r.per_node_max_cm > f.tolerance_cm + 1e-9
+        over = ~(r.per_node_max_cm <= f.tolerance_cm + 1e-9)  # a NaN error is over too
         if over.any() and out.promise:
-            where = (f"{int(np.sum(r.errors_cm > f.tolerance_cm[None, :] + 1e-9))} samples" if r.errors_cm is not None
+            where = (f"{int(np.sum(~(r.errors_cm <= f.tolerance_cm[None, :] + 1e-9)))} samples" if r.errors_cm is not None
                      else f"{int(over.sum())} nodes")
             raise EncodeError(
                 f"clip {f.name!r}: error {r.max_cm:.4f} cm exceeds the tolerance on "

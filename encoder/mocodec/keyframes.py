@@ -565,6 +565,11 @@ class Compensation:
         scales = motion.scales
         self.scaled = not (scales.ndim == 3 and scales.strides[0] == 0 and np.all(scales[0] == 1.0))
         self.shell = shell_cm / cm_per_unit
+        if plan is not None and (plan.frames != motion.frame_count or halfway and plan.held is None
+                                 and motion.frame_count > 1):
+            raise ValueError(f"the plan given is of a clip of {plan.frames} frames"
+                             f"{'' if plan.held is not None else ' without held intervals'}; this one has "
+                             f"{motion.frame_count}{' and holds half-way' if halfway else ''}")
         self.plan = plan or plan_clip(motion, cm_per_unit, shell_cm, self.pos_w, halfway)
         self.aim = self.plan.aim
         self.track_nodes, self.track_parts = self.plan.track_nodes, self.plan.track_parts

@@ -10,7 +10,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .motion import Motion, Skeleton
+from .motion import CHANNEL_FRAMES_BYTES, Motion, Skeleton
 from .rotations import quat_multiply, quat_rotate
 
 
@@ -115,10 +115,11 @@ def world_position_chunks(motion: Motion, chunk: int | None = None) -> Iterator[
         yield rows, forward_kinematics(motion.skeleton, motion.rotations[rows], motion.translations[rows],
                                        motion.scales[rows])[1]
 
-SHORT_CLIP_BYTES = 16 << 20
+SHORT_CLIP_BYTES = CHANNEL_FRAMES_BYTES
 """A clip whose world rotations (F x N x 4 float64) take at most this many bytes (about 13,000
 frames of a 38-node skeleton; every dev clip) keeps its world rotations and half-way reference
-whole, computed once, rather than rebuilt where they are read: the same numbers, faster."""
+whole, computed once, rather than rebuilt where they are read: the same numbers, faster. The
+size past which a clip read from channels keeps them alone, so such a clip is never short."""
 
 
 def short_clip(motion: Motion) -> bool:
@@ -220,10 +221,10 @@ def interval_motion(motion: Motion, world: np.ndarray | None) -> tuple[np.ndarra
     for start in range(0, intervals, HALFWAY_CHUNK):  # per node (F-1, N) only a run at a time
         rows = slice(start, min(start + HALFWAY_CHUNK, intervals))
         span = slice(start, rows.stop + 1)
+        rot = motion.rotations[span]  # read once (a long clip's are computed when read)
         pos = (world[span] if world is not None else
-               forward_kinematics(motion.skeleton, motion.rotations[span], motion.translations[span],
-                                  motion.scales[span])[1])
-        s, t = _steps_and_turns(motion.rotations[span], pos)
+               forward_kinematics(motion.skeleton, rot, motion.translations[span], motion.scales[span])[1])
+        s, t = _steps_and_turns(rot, pos)
         step[rows], turn[rows] = s.max(axis=1), t.max(axis=1)
     return step, turn
 

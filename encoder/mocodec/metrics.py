@@ -118,9 +118,9 @@ class ErrorMetric:
         bits). The position errors are kept and joined (``errors_cm``), or, given the clip's
         ``frames``, summarised as they come (:class:`_RunningErrors`: the same bits, without
         the clip's (F, N) errors and their copy for the percentile; a skeleton of two nodes or
-        more; the per-node means are the same bits when each run's errors are frame-major, as
-        from the runtime's decode, else equal to rounding: numpy sums a node-major array's
-        columns pairwise)."""
+        more; the per-node means are the kept errors' bits when the runs are frame-major, as
+        the runtime decodes them: kept node-major runs join node-major, and numpy sums each
+        node's column pairwise)."""
         errs: list[np.ndarray] = []
         # One node's errors are one contiguous column, which numpy sums pairwise, not frame after
         # frame: kept (F numbers), so that its mean is the same bits too.
@@ -191,7 +191,8 @@ def combine(reports: list[ErrorReport]) -> dict[str, float | None]:
     """Set-level figures over several clips: max of maxima, p99 over all samples, mean of
     per-clip means weighted by samples (``max_pct_height`` None when no clip has a height).
     Where a clip's report summarised its errors (a long clip's) and there are several clips,
-    the p99 is the largest clip p99, a bound on the set's."""
+    the p99 is the largest clip p99, which the set's is close to (not above it but for the
+    interpolation between its two nearest samples)."""
     if len(reports) == 1:
         p99 = reports[0].p99_cm
     elif any(r.errors_cm is None for r in reports):
@@ -230,6 +231,7 @@ class _RunningErrors:
     def add(self, err: np.ndarray) -> None:
         if not err.size:
             return
+        err = np.ascontiguousarray(err)  # summed frame after frame whatever the runs' layout
         # The running sums go first in the reduction, so each frame is added to them in turn.
         self.sums = err.sum(axis=0) if self.sums is None else np.add.reduce(np.concatenate((self.sums[None], err)), axis=0)
         self.maxima = err.max(axis=0) if self.maxima is None else np.maximum(self.maxima, err.max(axis=0))

@@ -299,6 +299,8 @@ class Motion:
         frames = channels.shape[0]
         n = skeleton.node_count
         if frames * n * 32 > CHANNEL_FRAMES_BYTES:
+            channels = channels.view()
+            channels.flags.writeable = False  # what the rotations are computed from stays
             return cls(skeleton, ChannelFrames(channels, skeleton, "rotations"),
                        ChannelFrames(channels, skeleton, "translations"), float(frame_time), name,
                        source_channels=channels)

@@ -55,11 +55,8 @@ def _update_array(h: "hashlib._Hash", a: np.ndarray | None) -> None:
         h.update(b"none;")
         return
     if not isinstance(a, ChannelFrames):
-        a = np.asarray(a)
+        a = np.atleast_1d(np.asarray(a))  # (a number hashes as one of shape (1,), as it did)
     h.update(f"{a.dtype.str}{tuple(a.shape)};".encode())
-    if a.ndim == 0:
-        h.update(np.ascontiguousarray(a).tobytes())
-        return
     # The C-order bytes a run of frames at a time (the same digest as whole): a long clip's
     # rotations computed from its channels, or a broadcast array, are never made whole.
     for rows in frame_runs(len(a)):

@@ -26,10 +26,15 @@ small library is read once; past it, clips are read again from their files when 
 
 
 def motion_bytes(motion: Motion) -> int:
-    """The memory of a motion's frame arrays (a long clip's rotations and translations computed
-    from its channels: what they keep beside the channels)."""
+    """The memory of a motion's frame arrays: what each holds (a long clip's rotations and
+    translations computed from its channels, what they keep beside them; a row broadcast over
+    the frames, its row)."""
+    def held(a: "np.ndarray | ChannelFrames") -> int:
+        if isinstance(a, ChannelFrames):
+            return a.held_bytes
+        return a[0].nbytes if a.ndim and a.strides[0] == 0 else a.nbytes
     arrays = (motion.rotations, motion.translations, motion.scales, motion.source_channels)
-    return sum(a.held_bytes if isinstance(a, ChannelFrames) else a.nbytes for a in arrays if a is not None)
+    return sum(held(a) for a in arrays if a is not None)
 
 
 @dataclass(frozen=True)
