@@ -600,3 +600,29 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(sample_paths, tmp_path, job
     time.sleep(0.5)
     assert [w for w in workers if Path(f"/proc/{w}").exists() and "zombie" not in
             Path(f"/proc/{w}/status").read_text().lower()] == []
+
+
+def test_a_clip_read_once_is_shared_while_held(tmp_path, monkeypatch, sample_paths) -> None:
+    """A clip too large to stay resident is read again only when nothing holds it: its job and
+    its check share the copy held (one read, one copy of a long clip), and a file changed since
+    is read afresh."""
+    import importlib
+    import shutil
+
+    loading = importlib.import_module("mocodec.load")  # (mocodec.load is also a function)
+    path = tmp_path / "walk.bvh"
+    shutil.copy(sample_paths[0], path)
+    lib = open_library([path], resident_bytes=0)  # nothing kept: every clip read when asked for
+    reads = []
+    read_clips = loading.read_clips
+    monkeypatch.setattr(loading, "read_clips", lambda *a: reads.append(a) or read_clips(*a))
+    first = lib[0]
+    assert lib.subset([0])[0] is first and lib.refs[0].load() is first and len(reads) == 1
+    del first
+    held = lib[0]  # dropped: read again
+    assert len(reads) == 2 and lib[0] is held
+    text = path.read_text()
+    path.write_text(text.replace("Frame Time: .0083333", "Frame Time: 0.01"))
+    os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))
+    fresh = lib[0]
+    assert fresh is not held and fresh.frame_time == 0.01 and len(reads) == 3

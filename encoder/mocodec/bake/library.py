@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import weakref
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,19 +52,43 @@ class ClipRef:
     transform: Callable[[Motion], Motion] | None = None
 
     def load(self) -> Motion:
+        """The clip: the copy this process already holds somewhere (a job, the check of the
+        same clip, a library's resident clips), else read from its file."""
         from ..load import read_clips
 
+        stamp = _stamp(self.path)
+        held = _LOADED.get((self, stamp))
+        if held is not None:
+            return held
         clips = read_clips(Path(self.path), self.rate)
         if self.index >= len(clips):
             raise ValueError(f"{self.path}: clip {self.index} is gone (the file changed during the bake)")
         motion = clips[self.index]
         motion.name = self.name
-        return self.transform(motion) if self.transform is not None else motion
+        motion = self.transform(motion) if self.transform is not None else motion
+        _LOADED[(self, stamp)] = motion
+        return motion
 
     @property
     def weight(self) -> int:
         """A guess of the work: frames times nodes."""
         return self.frames * self.nodes
+
+
+_LOADED: "weakref.WeakValueDictionary[tuple[ClipRef, tuple[int, int]], Motion]" = weakref.WeakValueDictionary()
+"""Clips read in this process, by their ref and their file's modification time and size, while
+something still holds them: a clip's job, its check and its library share one copy instead of
+each reading the file again (a long clip's channels alone are 2x its raw data)."""
+
+
+def _stamp(path: str) -> tuple[int, int]:
+    """The file's modification time (ns) and size; (-1, -1) when it cannot be read (the read
+    then says why)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return (-1, -1)
+    return (st.st_mtime_ns, st.st_size)
 
 
 class Library(Sequence[Motion]):
@@ -156,8 +181,9 @@ def open_library(paths: Sequence[str | os.PathLike], rate: float | None = None,
     lib = Library([], resident_bytes)
     for path, index, motion in iter_clips(paths, rate):
         i = len(lib.refs)
-        lib.refs.append(ClipRef(str(path), index, motion.name, rate, motion.frame_count,
-                                motion.skeleton.node_count))
+        ref = ClipRef(str(path), index, motion.name, rate, motion.frame_count, motion.skeleton.node_count)
+        lib.refs.append(ref)
+        _LOADED[(ref, _stamp(ref.path))] = motion
         if visit is not None:
             visit(i, motion)
         lib.keep(i, motion)

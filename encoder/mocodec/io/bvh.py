@@ -7,22 +7,25 @@ any joint, several roots, ``CHANNELS 0``, CRLF, tabs) and turns bad input into a
 read, before anything is allocated for it, and only regular files of bounded size are read
 (:mod:`mocodec.io.files`). The ``MOTION`` block is converted in chunks of lines (split, count
 per line, one float conversion each), so the text's tokens never all exist at once; lines are
-only scanned one by one to locate an error.
+only scanned one by one to locate an error. A file is read a block at a time, twice (its lines
+counted, then its frames converted), so that an hours-long capture's text is never held whole.
 """
 from __future__ import annotations
 
+import codecs
 import itertools
 import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO, Callable, Iterator
 
 import numpy as np
 
 from .. import limits
 from ..motion import CHANNEL_CODES, CHANNEL_NAMES, Motion, MotionError, Skeleton, unique_name
 from ..output import atomic_open
-from .files import read_regular_file
+from .files import MAX_INPUT_BYTES, open_regular_file, too_large
 
 __all__ = ["BVHError", "read_bvh", "parse_bvh", "format_bvh", "write_bvh"]
 
@@ -67,10 +70,15 @@ class BVHError(ValueError):
 # ------------------------------------------------------------------------------- reading
 def read_bvh(path: str | os.PathLike) -> Motion:
     """Read a BVH file (a regular file: a FIFO, a device or a folder is refused before it is
-    read); the clip is named after the file stem (:func:`mocodec.limits.safe_clip_name`)."""
+    read); the clip is named after the file stem (:func:`mocodec.limits.safe_clip_name`). The
+    file is read a few MB at a time, twice (its lines counted, then its frames converted), so
+    its text is never held whole: the same motion, and the same errors, as :func:`parse_bvh`
+    of its bytes."""
     path = Path(path)
-    data = read_regular_file(path, "BVH file", lambda message: BVHError(message, str(path)))
-    motion = parse_bvh(data, path=str(path), name=limits.safe_clip_name(path.stem))
+    with open_regular_file(path, "BVH file", lambda message: BVHError(message, str(path))) as f:
+        scan = _Scan(_FileText(f, str(path)))
+        skeleton, channels, frame_time = _parse_lines(scan.head, str(path), scan.frame_lines)
+    motion = Motion.from_channels(skeleton, channels, frame_time, limits.safe_clip_name(path.stem))
     motion.source = {"format": "bvh", "file": str(path)}
     return motion
 
@@ -96,36 +104,196 @@ def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = Non
         text = _decode(bytes(text), path)
     if name is None:
         name = limits.safe_clip_name(Path(path).stem) if path else "clip"
-    # Only \n and \r end lines (str.splitlines would also split on form feeds and the like,
-    # and the line numbers would no longer match an editor's).
-    text = text.replace("\r\n", "\n").replace("\r", "\n").removeprefix("\ufeff")
+    text = _normalized(text, first=True)
     nul = text.find("\x00")
     if nul >= 0:
-        raise BVHError("binary data (NUL character); not a BVH text file", path,
-                       text.count("\n", 0, nul) + 1)
+        raise _nul_error(path, text.count("\n", 0, nul) + 1)
     lines = text.split("\n")
     if len(lines) > 1 and not lines[-1]:
         lines.pop()  # the final newline ends the last line; it does not start another
-    hierarchy = _HierarchyParser(lines, path)
-    skeleton, motion_line = hierarchy.parse()
-    frames, frame_time, data_start, frames_line = _parse_motion_header(lines, motion_line, path)
-    channels = _parse_frames(lines, data_start, frames, skeleton, path, frames_line)
+    skeleton, channels, frame_time = _parse_lines(lines, path, lambda start: _FrameLines.of_list(lines, start))
     del lines, text  # the text is not needed for the motion (memory on long clips)
     return Motion.from_channels(skeleton, channels, frame_time, name)
 
 
-def _decode(data: bytes, path: str | None) -> str:
-    """UTF-8 text of ``data`` (a BOM is dropped); undecodable bytes become a BVHError."""
+def _normalized(text: str, first: bool) -> str:
+    """Line breaks as ``\n``: only \r\n, \r and \n end lines (str.splitlines would also split
+    on form feeds and the like, and the line numbers would no longer match an editor's); a
+    byte-order mark at the start of the file (``first``) dropped."""
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text.removeprefix("\ufeff") if first else text
+
+
+def _nul_error(path: str | None, line: int) -> BVHError:
+    return BVHError("binary data (NUL character); not a BVH text file", path, line)
+
+
+def _parse_lines(lines: list[str], path: str | None,
+                 frame_lines: "Callable[[int], _FrameLines]") -> tuple[Skeleton, np.ndarray, float]:
+    """Skeleton, ``(frames, channels)`` values and frame time from the file's lines up to its
+    header (the HIERARCHY, ``MOTION``, ``Frames:`` and ``Frame Time:``; the whole file when it
+    has no complete header) and its frame lines (``frame_lines(start)``, those from the line
+    index ``start`` on)."""
+    hierarchy = _HierarchyParser(lines, path)
+    skeleton, motion_line = hierarchy.parse()
+    frames, frame_time, data_start, frames_line = _parse_motion_header(lines, motion_line, path)
+    channels = _parse_frames(frame_lines(data_start), frames, skeleton, path, frames_line)
+    return skeleton, channels, frame_time
+
+
+def _decode(data: bytes, path: str | None, offset: int = 0, newlines: int = 0) -> str:
+    """UTF-8 text of ``data`` (a BOM at the start of the file, ``offset`` 0, is dropped);
+    undecodable bytes become a BVHError naming their offset in the file and their line
+    (``data`` starts at byte ``offset`` of the file, after ``newlines`` line feeds)."""
+    bom = offset == 0 and data.startswith(codecs.BOM_UTF8)
     try:
-        return data.decode("utf-8-sig")
+        return data.decode("utf-8-sig" if offset == 0 else "utf-8")
     except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        bad = data[exc.start]
+        at = exc.start + (len(codecs.BOM_UTF8) if bom else 0)  # utf-8-sig counts after the BOM
+        line = newlines + data.count(b"\n", 0, at) + 1
         raise BVHError(
-            f"not UTF-8 text (byte 0x{bad:02x} at offset {exc.start}); binary or wrongly "
+            f"not UTF-8 text (byte 0x{data[at]:02x} at offset {offset + at}); binary or wrongly "
             "encoded file", path, line) from None
 
 
+@dataclass
+class _FrameLines:
+    """The lines after a BVH header: the index ``start`` of the first, how many lines the file
+    has (``total``), how many of those from ``start`` on are not blank (``rows``), the indices
+    of the first and last of them (-1: none), and ``lines()``, those ``(index, line)`` in order."""
+
+    start: int
+    total: int
+    rows: int
+    first_row: int
+    last_row: int
+    lines: Callable[[], Iterator[tuple[int, str]]]
+
+    @classmethod
+    def of_list(cls, lines: list[str], start: int) -> "_FrameLines":
+        rows, first, last = 0, -1, -1
+        for k in range(start, len(lines)):
+            if lines[k] and not lines[k].isspace():
+                rows += 1
+                last = k
+                if first < 0:
+                    first = k
+        return cls(start, len(lines), rows, first, last,
+                   lambda: ((k, lines[k]) for k in range(start, len(lines))
+                            if lines[k] and not lines[k].isspace()))
+
+
+_READ_BLOCK = 1 << 22
+"""Bytes of a BVH file read at a time (:class:`_FileText`)."""
+
+
+class _FileText:
+    """A BVH file's lines read a block of bytes at a time: each block cut after its last line
+    break, decoded and its line breaks normalized, so that the lines (and their numbers, and
+    a decoding error's offset) are those :func:`parse_bvh` makes of the whole file. The first
+    NUL character's line is kept in :attr:`nul_line`."""
+
+    def __init__(self, f: BinaryIO, path: str) -> None:
+        self.f, self.path = f, path
+        self.nul_line: int | None = None
+
+    def _pieces(self) -> Iterator[str]:
+        """The decoded, normalized text from the start of the file, a piece of whole lines at
+        a time (each piece but the last ends with its line break)."""
+        self.f.seek(0)
+        carry, offset, newlines, total = b"", 0, 0, 0
+        while True:
+            try:
+                data = self.f.read(_READ_BLOCK)
+            except OSError as exc:
+                raise BVHError(f"cannot read: {exc.strerror or exc}", self.path) from None
+            total += len(data)
+            if total > MAX_INPUT_BYTES:
+                raise BVHError(too_large(), self.path)
+            buf = carry + data
+            if data:
+                # After the last \n or \r, but not after a \r that the next block's \n may follow.
+                cut = max(buf.rfind(b"\n"), buf.rfind(b"\r", 0, len(buf) - 1)) + 1
+                if cut == 0:
+                    carry = buf
+                    continue
+                piece, carry = buf[:cut], buf[cut:]
+            else:
+                piece, carry = buf, b""
+            yield _normalized(_decode(piece, self.path, offset, newlines), first=offset == 0)
+            offset += len(piece)
+            newlines += piece.count(b"\n")
+            if not data:
+                return
+
+    def lines(self) -> Iterator[tuple[int, str]]:
+        """``(index, line)`` of every line of the file, from the start, split as parse_bvh
+        splits the whole text: a final line break ends the last line rather than starting
+        another (a file of one empty line keeps it)."""
+        k, tail = 0, ""
+        for text in self._pieces():
+            if self.nul_line is None:
+                nul = text.find("\x00")
+                if nul >= 0:
+                    self.nul_line = k + text.count("\n", 0, nul) + 1
+            parts = text.split("\n")
+            for line in parts[:-1]:
+                yield k, line
+                k += 1
+            tail = parts[-1]  # "" but for the last piece: the others end with their break
+        if tail or k == 0:
+            yield k, tail
+
+
+class _Scan:
+    """The first of :func:`read_bvh`'s two reads: every line decoded (a file that is not UTF-8
+    or holds a NUL is refused here, as parse_bvh refuses it before anything else), the lines up
+    to the header kept (:attr:`head`: up to the second statement after ``MOTION``, ``Frame
+    Time:`` in a good file; the whole file without one), and the frame lines after it counted."""
+
+    def __init__(self, text: _FileText) -> None:
+        self.text = text
+        self.head: list[str] = []
+        self.start = -1
+        motion, after = False, 0
+        total, rows, first, last = 0, 0, -1, -1
+        for k, line in text.lines():
+            total = k + 1
+            if self.start < 0:
+                self.head.append(line)
+                if not motion:
+                    tokens = line.split()
+                    motion = bool(tokens) and tokens[0] == "MOTION"
+                elif line.strip():
+                    after += 1
+                    if after == 2:
+                        self.start = k + 1
+            elif line and not line.isspace():
+                rows += 1
+                last = k
+                if first < 0:
+                    first = k
+        if text.nul_line is not None:
+            raise _nul_error(text.path, text.nul_line)
+        self.total, self.rows, self.first_row, self.last_row = total, rows, first, last
+
+    def frame_lines(self, start: int) -> _FrameLines:
+        """The frame lines from ``start`` (the header parser's, the line after ``Frame Time:``:
+        where the scan began counting), read again from the file."""
+        if start != self.start:
+            raise BVHError(f"internal error: frames start at line {start + 1}, counted from "
+                           f"{self.start + 1}", self.text.path)
+        rows = self.rows
+
+        def lines() -> Iterator[tuple[int, str]]:
+            seen = 0
+            for k, line in self.text.lines():
+                if k >= start and line and not line.isspace():
+                    seen += 1
+                    yield k, line
+            if seen != rows:
+                raise BVHError("the file changed while it was read", self.text.path)
+        return _FrameLines(start, self.total, rows, self.first_row, self.last_row, lines)
 @dataclass
 class _Node:
     """A joint or End Site while the hierarchy is being read."""
@@ -416,25 +584,25 @@ def _parse_motion_header(lines: list[str], motion_line: int,
     return frames, frame_time, k + 1, frames_line
 
 
-def _parse_frames(lines: list[str], start: int, frames: int, skeleton: Skeleton,
-                  path: str | None, frames_line: int) -> np.ndarray:
-    """The ``(frames, channels)`` values from the frame lines from ``start`` on, each within
-    the format's +-1e7. Lines are converted about :data:`_CHUNK_VALUES` values at a time into
-    one array no larger than the lines present (``Frames:`` may promise more than the file
-    holds), and the motion the values become (frames x nodes) must be backed by them
+def _parse_frames(source: _FrameLines, frames: int, skeleton: Skeleton, path: str | None,
+                  frames_line: int) -> np.ndarray:
+    """The ``(frames, channels)`` values from the frame lines ``source``, each within the
+    format's +-1e7. Lines are converted about :data:`_CHUNK_VALUES` values at a time into one
+    array no larger than the lines present (``Frames:`` may promise more than the file holds),
+    and the motion the values become (frames x nodes) must be backed by them
     (:func:`mocodec.limits.samples_problem`)."""
     width = skeleton.channel_count
-    rows_at = [k for k in range(start, len(lines)) if lines[k] and not lines[k].isspace()]
+    start = source.start
     if width == 0:
         # A hierarchy without channels has one empty line a frame (as write_bvh writes it);
         # anything else on them is an error, and fewer lines than 'Frames:' a truncated file.
-        if rows_at:
+        if source.rows:
             raise BVHError("frame line has values but the hierarchy has no channels", path,
-                           rows_at[0] + 1)
-        if len(lines) - start < frames:
-            raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {len(lines) - start} "
-                           "frame lines (empty: the hierarchy has no channels)", path, len(lines) + 1)
-    present = min(frames, len(rows_at) if width else frames)
+                           source.first_row + 1)
+        if source.total - start < frames:
+            raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {source.total - start} "
+                           "frame lines (empty: the hierarchy has no channels)", path, source.total + 1)
+    present = min(frames, source.rows if width else frames)
     problem = limits.samples_problem(present, skeleton.node_count, present * width,
                                      "frame values")
     if problem:
@@ -443,20 +611,22 @@ def _parse_frames(lines: list[str], start: int, frames: int, skeleton: Skeleton,
         return np.zeros((frames, 0))
     values = np.empty((present, width))
     chunk_lines = max(1, _CHUNK_VALUES // width)
+    numbered = source.lines()
     for first in range(0, present, chunk_lines):
-        at = rows_at[first:min(first + chunk_lines, present)]
-        rows = [lines[k].split() for k in at]
+        part = list(itertools.islice(numbered, min(chunk_lines, present - first)))
+        at = [k for k, _ in part]
+        rows = [line.split() for _, line in part]
         counts = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
         bad = np.flatnonzero(counts != width)
         if bad.size:
             i = int(bad[0])
             hint = ("; the file may be truncated"
-                    if first + i == len(rows_at) - 1 and counts[i] < width else "")
+                    if first + i == source.rows - 1 and counts[i] < width else "")
             raise BVHError(f"frame {first + i + 1} of {frames}: expected {width} values, got "
                            f"{counts[i]}{hint}", path, at[i] + 1)
         try:
             # float() also takes '1_000'; no BVH writer emits that, so treat it as garbage.
-            if any("_" in lines[k] for k in at):
+            if any("_" in line for _, line in part):
                 raise ValueError
             chunk = np.fromiter(map(float, itertools.chain.from_iterable(rows)), dtype=np.float64,
                                 count=len(rows) * width).reshape(len(rows), width)
@@ -472,14 +642,14 @@ def _parse_frames(lines: list[str], start: int, frames: int, skeleton: Skeleton,
             raise BVHError(f"frame {first + i + 1} of {frames}, value {j + 1}: {_show(rows[i][j])} "
                            f"{reason}", path, at[i] + 1)
         values[first:first + len(rows)] = chunk
-    if len(rows_at) < frames:
-        after = rows_at[-1] + 2 if rows_at else start + 1
-        raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {len(rows_at)} frame "
+    if source.rows < frames:
+        after = source.last_row + 2 if source.rows else start + 1
+        raise BVHError(f"truncated MOTION: 'Frames: {frames}' but only {source.rows} frame "
                        "lines", path, after)
-    if len(rows_at) > frames:
+    if source.rows > frames:
+        k, line = next(numbered)
         raise BVHError(f"more frame lines than 'Frames: {frames}' (extra line with "
-                       f"{len(lines[rows_at[frames]].split())} values)", path,
-                       rows_at[frames] + 1)
+                       f"{len(line.split())} values)", path, k + 1)
     return values
 
 
