@@ -5,6 +5,7 @@ at most 4x), the asset's bytes and the error through the C runtime, or the reaso
 
     python bench/long_clip.py                              # 20 minutes, rma and spline
     python bench/long_clip.py --minutes 120 --codecs rma   # the 2-hour case
+    python bench/long_clip.py --codecs rma --via-bvh /tmp/long.bvh   # through a BVH file and the CLI
 
 Each codec runs in its own process; its peak memory includes the interpreter and libraries
 (about 40 MB) and the dev clips' channels the motion is built from (38 MB), so short runs
@@ -49,6 +50,36 @@ def joined_motion(folder: Path, frames: int):
                                 f"joined_{frames}")
 
 
+def run_cli(codec: str, bvh: Path, frames: int, channels: int, tolerance: float) -> dict:
+    # (``frames`` and ``channels``: the file's, as the parent wrote it, for the raw size)
+    """``mocodec encode`` of the joined clip written as a BVH file: the whole path a user takes
+    (the file read, its clip kept by the library, encoded, measured), in this process."""
+    import contextlib
+    import io
+    import tempfile
+
+    from mocodec.cli import _peak_rss_kib
+    from mocodec.cli import main as cli
+
+    raw = frames * channels * 4
+    row = {"codec": codec, "via": "mocodec encode FILE.bvh", "bvh_bytes": bvh.stat().st_size, "frames": frames,
+           "minutes": frames / 120 / 60, "raw_float32_bytes": raw}
+    cpu, wall = time.process_time(), time.perf_counter()
+    out = io.StringIO()
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(out):
+        code = cli(["encode", str(bvh), "-o", str(Path(tmp) / "long.mcd"), "--codec", codec,
+                    "--tolerance", str(tolerance), "--json", "-q"])
+    if code == 0:
+        report = json.loads(out.getvalue())
+        row.update(ok=True, asset_bytes=report["size"]["asset_bytes"], max_cm=report["error"]["max_cm"])
+    else:
+        row.update(ok=False, error=f"mocodec encode exited {code}")
+    peak = _peak_rss_kib() * 1024
+    row.update(cpu_s=time.process_time() - cpu, wall_s=time.perf_counter() - wall, peak_bytes=peak,
+               peak_over_raw=peak / raw)
+    return row
+
+
 def run_one(codec: str, folder: Path, frames: int, tolerance: float) -> dict:
     from mocodec.cli import _peak_rss_kib
     from mocodec.encode import encode_motions
@@ -79,17 +110,31 @@ def main() -> None:
     ap.add_argument("--cmu", type=Path, default=REPO.parent / "shared" / "data" / "cmu",
                     help="the dev BVH clips (default ../shared/data/cmu)")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "long_clip.json")
+    ap.add_argument("--via-bvh", type=Path, metavar="FILE",
+                    help="write the joined clip to this BVH file (kept) and measure `mocodec encode FILE` "
+                         "instead: reading the file included")
     ap.add_argument("--one", help=argparse.SUPPRESS)  # child: run this codec, print its row
+    ap.add_argument("--channels", type=int, help=argparse.SUPPRESS)  # child: the BVH file's
     args = ap.parse_args()
     frames = int(round(args.minutes * 60 * 120))
     if args.one:
-        print(json.dumps(run_one(args.one, args.cmu, frames, args.tolerance)))
+        if args.via_bvh:
+            print(json.dumps(run_cli(args.one, args.via_bvh, frames, args.channels, args.tolerance)))
+        else:
+            print(json.dumps(run_one(args.one, args.cmu, frames, args.tolerance)))
         return
+    child = [sys.executable, __file__, "--minutes", str(args.minutes), "--tolerance", str(args.tolerance),
+             "--cmu", str(args.cmu)]
+    if args.via_bvh:
+        from mocodec.io.bvh import write_bvh
+
+        motion = joined_motion(args.cmu, frames)
+        write_bvh(motion, args.via_bvh)
+        child += ["--via-bvh", str(args.via_bvh), "--channels", str(motion.skeleton.channel_count)]
+        del motion
     rows = []
     for codec in args.codecs:
-        r = subprocess.run([sys.executable, __file__, "--one", codec, "--minutes", str(args.minutes),
-                            "--tolerance", str(args.tolerance), "--cmu", str(args.cmu)],
-                           capture_output=True, text=True)
+        r = subprocess.run(child + ["--one", codec], capture_output=True, text=True)
         row = json.loads(r.stdout.splitlines()[-1]) if r.returncode == 0 else \
             {"codec": codec, "ok": False, "error": r.stderr.strip().splitlines()[-1:]}
         rows.append(row)

@@ -681,25 +681,35 @@ def test_clip_names_from_file_names_keep_to_the_format(tmp_path: Path) -> None:
     assert [c.name for c in Asset(result.asset).clips] == ["take_2_"]
 
 
+def long_sample_text(path: Path, frames: int) -> str:
+    """The BVH at ``path`` with its frames repeated to ``frames`` of them."""
+    lines = path.read_text().splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith("Frames:"))
+    rows = [line for line in lines[at + 2:] if line.strip()]
+    return "\n".join(lines[:at] + [f"Frames: {frames}", lines[at + 1]] + (rows * (frames // len(rows) + 1))[:frames]) + "\n"
+
+
 def test_reading_a_long_clip_keeps_memory_near_the_motion(sample_paths: list[Path]) -> None:
     """Reading held every token of the MOTION block as a Python string at once (11.6 times the
     text at the peak on a CMU clip); now lines are converted in chunks and a node's rotations
     made continuous one node at a time: the peak is what the motion keeps (its float64
     rotations and translations) plus at most 2.5 times the text."""
+    data = long_sample_text(sample_paths[0], 6000).encode()
+    motion, kept, peak = traced(lambda: parse_bvh(data))
+    assert motion.frame_count == 6000
+    assert peak < kept + 2.5 * len(data), (peak / len(data), kept / len(data))
+
+
+def traced(read):
+    """``read()``, and the memory it keeps and its peak (tracemalloc)."""
     import tracemalloc
-    lines = sample_paths[0].read_text().splitlines()
-    at = next(k for k, line in enumerate(lines) if line.startswith("Frames:"))
-    frames = [line for line in lines[at + 2:] if line.strip()]
-    text = "\n".join(lines[:at] + ["Frames: 6000", lines[at + 1]] + (frames * 20)[:6000]) + "\n"
-    data = text.encode()
     tracemalloc.start()
     try:
-        motion = parse_bvh(data)
+        out = read()
         kept, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert motion.frame_count == 6000
-    assert peak < kept + 2.5 * len(data), (peak / len(data), kept / len(data))
+    return out, kept, peak
 
 
 def test_a_file_over_the_size_limit_is_refused_from_its_size(tmp_path: Path) -> None:
