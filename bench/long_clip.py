@@ -65,15 +65,15 @@ def run_cli(codec: str, bvh: Path, frames: int, channels: int, tolerance: float)
     row = {"codec": codec, "via": "mocodec encode FILE.bvh", "bvh_bytes": bvh.stat().st_size, "frames": frames,
            "minutes": frames / 120 / 60, "raw_float32_bytes": raw}
     cpu, wall = time.process_time(), time.perf_counter()
-    out = io.StringIO()
-    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(out):
+    out, err = io.StringIO(), io.StringIO()
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli(["encode", str(bvh), "-o", str(Path(tmp) / "long.mcd"), "--codec", codec,
                     "--tolerance", str(tolerance), "--json", "-q"])
     if code == 0:
         report = json.loads(out.getvalue())
         row.update(ok=True, asset_bytes=report["size"]["asset_bytes"], max_cm=report["error"]["max_cm"])
     else:
-        row.update(ok=False, error=f"mocodec encode exited {code}")
+        row.update(ok=False, error=f"mocodec encode exited {code}: {err.getvalue().strip()[-300:]}")
     peak = _peak_rss_kib() * 1024
     row.update(cpu_s=time.process_time() - cpu, wall_s=time.perf_counter() - wall, peak_bytes=peak,
                peak_over_raw=peak / raw)

@@ -626,3 +626,26 @@ def test_a_clip_read_once_is_shared_while_held(tmp_path, monkeypatch, sample_pat
     os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))
     fresh = lib[0]
     assert fresh is not held and fresh.frame_time == 0.01 and len(reads) == 3
+    # A copy that keeps the modification time and size (cp -p, rsync -a) is read afresh too.
+    stat = path.stat()
+    other = tmp_path / "other.bvh"
+    other.write_text(text.replace("Frame Time: .0083333", "Frame Time: 0.02"))
+    os.utime(other, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    os.replace(other, path)
+    assert lib[0].frame_time == 0.02 and len(reads) == 4
+
+
+@dataclasses.dataclass
+class _Unhashable:
+    """A transform that does not hash (a plain dataclass): its clips are read, not shared."""
+    scale: float
+
+    def __call__(self, motion):
+        motion.frame_time *= self.scale
+        return motion
+
+
+def test_a_library_mapped_by_a_transform_that_does_not_hash_still_reads(tmp_path, sample_paths) -> None:
+    lib = open_library([sample_paths[0]], resident_bytes=0).map(_Unhashable(2.0))
+    a, b = lib[0], lib[0]
+    assert a.frame_time == b.frame_time == pytest.approx(2 * 0.0083333)

@@ -47,6 +47,8 @@ def _cases() -> list[tuple[str, bytes]]:
         ("no line break at all", b"HIERARCHY"),
         ("only the header", (HEAD + "Frames: 0\nFrame Time: 0.01").encode()),
         ("extra frame lines", (HEAD + frames + "1 2\n").encode()),
+        ("CR line ends and bad UTF-8", (HEAD + frames).replace("\n", "\r").encode().replace(b"OFFSET", b"OFF\xffSET")),
+        ("a line longer than many blocks", (HEAD + "Frames: 1\nFrame Time: 0.01\n" + "1 " * 5000 + "\n").encode()),
         ("non-breaking spaces as blank lines", (HEAD + frames.replace("7 8 9\n", "7 8 9\n\u00a0\u2003\n")).encode()),
     ]
     return cases
@@ -72,19 +74,32 @@ def test_streamed_read_is_parse_of_the_whole_file(tmp_path, monkeypatch, sample_
     assert not mismatches, "\n".join(mismatches[:10])
 
 
-def test_a_file_that_changes_between_the_two_reads_is_refused(tmp_path, monkeypatch) -> None:
-    path = tmp_path / "shrinks.bvh"
+@pytest.mark.parametrize("change", ["a frame line gone", "rewritten, same size"])
+def test_a_file_that_changes_between_the_two_reads_is_refused(tmp_path, monkeypatch, change) -> None:
+    path = tmp_path / "changes.bvh"
     data = (HEAD + "Frames: 2\nFrame Time: 0.01\n1 2 3\n4 5 6\n").encode()
     path.write_bytes(data)
     count = mocodec.io.bvh._Scan.__init__
 
-    def scan_then_truncate(self, text):
+    def scan_then_change(self, text):
         count(self, text)
-        with open(path, "r+b") as f:
-            f.truncate(len(data) - len("4 5 6\n"))  # the last frame line gone before the frames are read
-    monkeypatch.setattr(mocodec.io.bvh._Scan, "__init__", scan_then_truncate)
+        if change == "a frame line gone":
+            with open(path, "r+b") as f:
+                f.truncate(len(data) - len("4 5 6\n"))
+        else:
+            path.write_bytes(data.replace(b"Time: 0.01\n1 2 3", b"Time: 0.02\n9 9 9"))
+    monkeypatch.setattr(mocodec.io.bvh._Scan, "__init__", scan_then_change)
     with pytest.raises(BVHError, match="changed while it was read"):
         read_bvh(path)
+
+
+def test_a_bad_byte_in_a_file_of_cr_line_ends_is_on_its_line(tmp_path) -> None:
+    data = b"HIERARCHY\rROOT a\rOFF\xffSET 0 0 0\r"
+    (tmp_path / "cr.bvh").write_bytes(data)
+    for read in (lambda: parse_bvh(data), lambda: read_bvh(tmp_path / "cr.bvh")):
+        with pytest.raises(BVHError, match="not UTF-8") as info:
+            read()
+        assert info.value.line == 3
 
 
 def test_a_bad_byte_after_a_byte_order_mark_is_named_where_it_is(tmp_path) -> None:

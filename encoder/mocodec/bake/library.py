@@ -57,7 +57,7 @@ class ClipRef:
         from ..load import read_clips
 
         stamp = _stamp(self.path)
-        held = _LOADED.get((self, stamp))
+        held = _held(self, stamp)
         if held is not None:
             return held
         clips = read_clips(Path(self.path), self.rate)
@@ -66,7 +66,7 @@ class ClipRef:
         motion = clips[self.index]
         motion.name = self.name
         motion = self.transform(motion) if self.transform is not None else motion
-        _LOADED[(self, stamp)] = motion
+        _hold(self, stamp, motion)
         return motion
 
     @property
@@ -75,20 +75,40 @@ class ClipRef:
         return self.frames * self.nodes
 
 
-_LOADED: "weakref.WeakValueDictionary[tuple[ClipRef, tuple[int, int]], Motion]" = weakref.WeakValueDictionary()
-"""Clips read in this process, by their ref and their file's modification time and size, while
+Stamp = tuple[int, ...]
+
+_LOADED: "weakref.WeakValueDictionary[tuple[ClipRef, Stamp], Motion]" = weakref.WeakValueDictionary()
+"""Clips read in this process, by their ref and their file's state (:func:`_stamp`), while
 something still holds them: a clip's job, its check and its library share one copy instead of
 each reading the file again (a long clip's channels alone are 2x its raw data)."""
 
 
-def _stamp(path: str) -> tuple[int, int]:
-    """The file's modification time (ns) and size; (-1, -1) when it cannot be read (the read
-    then says why)."""
+def _stamp(path: str) -> Stamp:
+    """The file's identity and state: device, inode, size, modification and change times (ns;
+    a copy that keeps the modification time is another inode, with a new change time). Empty
+    when it cannot be read (the read then says why; nothing is shared)."""
     try:
         st = os.stat(path)
     except OSError:
-        return (-1, -1)
-    return (st.st_mtime_ns, st.st_size)
+        return ()
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
+def _held(ref: "ClipRef", stamp: Stamp) -> Motion | None:
+    """The copy of ``ref``'s clip read from the file in state ``stamp``, if something holds it."""
+    try:
+        return _LOADED.get((ref, stamp)) if stamp else None
+    except TypeError:  # a transform that does not hash: its clips are not shared
+        return None
+
+
+def _hold(ref: "ClipRef", stamp: Stamp, motion: Motion) -> None:
+    """Share ``motion``, ``ref``'s clip read from the file in state ``stamp``, while it is held."""
+    if stamp:
+        try:
+            _LOADED[(ref, stamp)] = motion
+        except TypeError:
+            pass
 
 
 class Library(Sequence[Motion]):
@@ -151,7 +171,11 @@ class Library(Sequence[Motion]):
                                        else _Chain(ref.transform, transform))
         out = Library([chain(r) for r in self.refs], self.resident_bytes)
         for i, m in self._resident.items():
-            out.keep(i, transform(m))
+            mapped = transform(m)
+            out.keep(i, mapped)
+            stamp = _stamp(self.refs[i].path)
+            if _held(self.refs[i], stamp) is m:  # read from the file as it is: the mapped clip too
+                _hold(out.refs[i], stamp, mapped)
         return out
 
     def __getstate__(self) -> dict[str, Any]:
@@ -176,14 +200,17 @@ def open_library(paths: Sequence[str | os.PathLike], rate: float | None = None,
     """The clips of ``paths`` (files or folders, as :func:`mocodec.load.load_all` reads them and
     with the same names), each file read once here; ``visit(i, motion)`` sees each clip as it is
     read (what a caller needs of every clip, gathered without reading it again)."""
-    from ..load import iter_clips
+    from ..load import expand, iter_clips
 
     lib = Library([], resident_bytes)
+    before = {str(p): _stamp(str(p)) for p in expand(paths)}  # (a file changed as it is read is not shared)
     for path, index, motion in iter_clips(paths, rate):
         i = len(lib.refs)
         ref = ClipRef(str(path), index, motion.name, rate, motion.frame_count, motion.skeleton.node_count)
         lib.refs.append(ref)
-        _LOADED[(ref, _stamp(ref.path))] = motion
+        stamp = _stamp(ref.path)
+        if before.get(ref.path) == stamp:
+            _hold(ref, stamp, motion)
         if visit is not None:
             visit(i, motion)
         lib.keep(i, motion)

@@ -76,8 +76,16 @@ def read_bvh(path: str | os.PathLike) -> Motion:
     of its bytes."""
     path = Path(path)
     with open_regular_file(path, "BVH file", lambda message: BVHError(message, str(path))) as f:
-        scan = _Scan(_FileText(f, str(path)))
-        skeleton, channels, frame_time = _parse_lines(scan.head, str(path), scan.frame_lines)
+        before = _state(f)
+        try:
+            scan = _Scan(_FileText(f, str(path)))
+            skeleton, channels, frame_time = _parse_lines(scan.head, str(path), scan.frame_lines)
+        except BVHError:
+            if _state(f) != before:  # the second read saw another file than the first
+                raise _changed(str(path)) from None
+            raise
+        if _state(f) != before:
+            raise _changed(str(path))
     motion = Motion.from_channels(skeleton, channels, frame_time, limits.safe_clip_name(path.stem))
     motion.source = {"format": "bvh", "file": str(path)}
     return motion
@@ -116,6 +124,16 @@ def parse_bvh(text: str | bytes, path: str | None = None, name: str | None = Non
     return Motion.from_channels(skeleton, channels, frame_time, name)
 
 
+def _state(f: BinaryIO) -> tuple[int, int, int]:
+    """Size, modification and change times (ns) of an open file: what any write changes."""
+    st = os.fstat(f.fileno())
+    return (st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
+def _changed(path: str) -> BVHError:
+    return BVHError("the file changed while it was read; read it again once it is written", path)
+
+
 def _normalized(text: str, first: bool) -> str:
     """Line breaks as ``\n``: only \r\n, \r and \n end lines (str.splitlines would also split
     on form feeds and the like, and the line numbers would no longer match an editor's); a
@@ -141,16 +159,21 @@ def _parse_lines(lines: list[str], path: str | None,
     return skeleton, channels, frame_time
 
 
-def _decode(data: bytes, path: str | None, offset: int = 0, newlines: int = 0) -> str:
+def _line_breaks(data: bytes) -> int:
+    """How many lines ``data`` ends: \\r\\n, \\r and \\n each end one."""
+    return data.count(b"\n") + data.count(b"\r") - data.count(b"\r\n")
+
+
+def _decode(data: bytes, path: str | None, offset: int = 0, breaks: int = 0) -> str:
     """UTF-8 text of ``data`` (a BOM at the start of the file, ``offset`` 0, is dropped);
     undecodable bytes become a BVHError naming their offset in the file and their line
-    (``data`` starts at byte ``offset`` of the file, after ``newlines`` line feeds)."""
+    (``data`` starts at byte ``offset`` of the file, after ``breaks`` line breaks)."""
     bom = offset == 0 and data.startswith(codecs.BOM_UTF8)
     try:
         return data.decode("utf-8-sig" if offset == 0 else "utf-8")
     except UnicodeDecodeError as exc:
         at = exc.start + (len(codecs.BOM_UTF8) if bom else 0)  # utf-8-sig counts after the BOM
-        line = newlines + data.count(b"\n", 0, at) + 1
+        line = breaks + _line_breaks(data[:at]) + 1
         raise BVHError(
             f"not UTF-8 text (byte 0x{data[at]:02x} at offset {offset + at}); binary or wrongly "
             "encoded file", path, line) from None
@@ -201,7 +224,9 @@ class _FileText:
         """The decoded, normalized text from the start of the file, a piece of whole lines at
         a time (each piece but the last ends with its line break)."""
         self.f.seek(0)
-        carry, offset, newlines, total = b"", 0, 0, 0
+        carry = bytearray()  # the bytes after the last line break so far (appended to: a line
+        # of gigabytes costs its length, not its length squared)
+        offset, breaks, total = 0, 0, 0
         while True:
             try:
                 data = self.f.read(_READ_BLOCK)
@@ -210,19 +235,22 @@ class _FileText:
             total += len(data)
             if total > MAX_INPUT_BYTES:
                 raise BVHError(too_large(), self.path)
-            buf = carry + data
             if data:
-                # After the last \n or \r, but not after a \r that the next block's \n may follow.
-                cut = max(buf.rfind(b"\n"), buf.rfind(b"\r", 0, len(buf) - 1)) + 1
+                # After the last \n or \r, but not after a \r that the next block's \n may
+                # follow; the carry holds no other break, so only the new bytes (and a held \r)
+                # are searched.
+                since = max(len(carry) - 1, 0)
+                carry += data
+                cut = max(carry.rfind(b"\n", since), carry.rfind(b"\r", since, len(carry) - 1)) + 1
                 if cut == 0:
-                    carry = buf
                     continue
-                piece, carry = buf[:cut], buf[cut:]
+                piece = bytes(carry[:cut])
+                del carry[:cut]
             else:
-                piece, carry = buf, b""
-            yield _normalized(_decode(piece, self.path, offset, newlines), first=offset == 0)
+                piece = bytes(carry)
+            yield _normalized(_decode(piece, self.path, offset, breaks), first=offset == 0)
             offset += len(piece)
-            newlines += piece.count(b"\n")
+            breaks += _line_breaks(piece)
             if not data:
                 return
 
@@ -292,7 +320,7 @@ class _Scan:
                     seen += 1
                     yield k, line
             if seen != rows:
-                raise BVHError("the file changed while it was read", self.text.path)
+                raise _changed(self.text.path)
         return _FrameLines(start, self.total, rows, self.first_row, self.last_row, lines)
 @dataclass
 class _Node:

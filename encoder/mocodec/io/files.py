@@ -42,7 +42,10 @@ def open_regular_file(path: str | os.PathLike, what: str, error: Callable[[str],
             raise error(f"{_kind(info.st_mode)}, not a {what} (only regular files are read)")
         if info.st_size > limit:
             raise error(f"{info.st_size:,} bytes; files over {limit:,} bytes are not read")
-        f = os.fdopen(fd, "rb")
+        try:
+            f = os.fdopen(fd, "rb")
+        except OSError as exc:
+            raise error(f"cannot read: {exc.strerror or exc}") from None
     except BaseException:
         os.close(fd)
         raise
@@ -63,7 +66,7 @@ def read_regular_file(path: str | os.PathLike, what: str, error: Callable[[str],
         try:
             # read(n) reserves n bytes up front: ask for the stated size, then in small pieces
             # for a file that grows while it is read, up to the limit.
-            parts = [f.read(os.fstat(f.fileno()).st_size)]
+            parts = [f.read(min(os.fstat(f.fileno()).st_size, limit + 1))]
             total = len(parts[0])
             while total <= limit:
                 more = f.read(1 << 16)
