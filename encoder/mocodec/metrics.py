@@ -226,7 +226,8 @@ class _RunningErrors:
         # numpy's linear percentile reads the sorted samples at floor((n-1) q) and the next one.
         self._at = int(np.floor((samples - 1) * 0.99)) if samples else 0
         self._keep = max(samples - self._at, 1)
-        self._top = np.empty(0)
+        self._top: list[np.ndarray] = []  # runs' samples, cut to the largest now and then
+        self._held = 0
 
     def add(self, err: np.ndarray) -> None:
         if not err.size:
@@ -242,16 +243,21 @@ class _RunningErrors:
             self._worst_value = value
             frame, node = divmod(flat, err.shape[1])
             self.worst = (self.rows + frame, node)
-        self._top = np.concatenate((self._top, err.ravel()))
-        if len(self._top) > 2 * self._keep + 65536:  # partitioned now and then, not every run
+        self._top.append(err.ravel())
+        self._held += err.size
+        if self._held > 2 * self._keep + 65536:  # joined and partitioned now and then, not every run
             self._trim()
         self.rows += err.shape[0]
         self.seen += err.size
 
-    def _trim(self) -> None:
-        if len(self._top) > self._keep:
-            cut = len(self._top) - self._keep
-            self._top = np.partition(self._top, cut)[cut:]
+    def _trim(self) -> np.ndarray:
+        """The samples held, cut to the largest :attr:`_keep`."""
+        top = self._top[0] if len(self._top) == 1 else np.concatenate(self._top or [np.empty(0)])
+        if len(top) > self._keep:
+            cut = len(top) - self._keep
+            top = np.partition(top, cut)[cut:]
+        self._top, self._held = [top], len(top)
+        return top
 
     def max(self) -> float:
         """The largest error (NaN if one is NaN, as ``max`` of the whole)."""
@@ -265,8 +271,7 @@ class _RunningErrors:
             raise ValueError(f"{self.seen} samples evaluated, {self.samples} expected")
         if self._worst_value is not None and np.isnan(self._worst_value):
             return float("nan")
-        self._trim()
-        top = np.sort(self._top)
+        top = np.sort(self._trim())
         low, high = float(top[0]), float(top[1]) if len(top) > 1 else float(top[0])
         # numpy's _lerp, in float64 as it computes it.
         virtual = (self.samples - 1) * 0.99

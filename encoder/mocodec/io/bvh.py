@@ -18,7 +18,7 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO, Callable, Iterator
+from typing import BinaryIO, Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -194,16 +194,28 @@ class _FrameLines:
 
     @classmethod
     def of_list(cls, lines: list[str], start: int) -> "_FrameLines":
-        rows, first, last = 0, -1, -1
-        for k in range(start, len(lines)):
-            if lines[k] and not lines[k].isspace():
-                rows += 1
-                last = k
-                if first < 0:
-                    first = k
+        rows, first, last, _ = _count_rows((k, lines[k]) for k in range(start, len(lines)))
         return cls(start, len(lines), rows, first, last,
-                   lambda: ((k, lines[k]) for k in range(start, len(lines))
-                            if lines[k] and not lines[k].isspace()))
+                   lambda: ((k, lines[k]) for k in range(start, len(lines)) if _is_row(lines[k])))
+
+
+def _is_row(line: str) -> bool:
+    """Whether a line after the header is a frame line (not blank)."""
+    return bool(line) and not line.isspace()
+
+
+def _count_rows(numbered: Iterable[tuple[int, str]], total: int = 0) -> tuple[int, int, int, int]:
+    """How many of ``(index, line)`` pairs are frame lines, the indices of the first and last
+    of them (-1: none), and the count of lines up to the last pair (``total`` without any)."""
+    rows, first, last = 0, -1, -1
+    for k, line in numbered:
+        total = k + 1
+        if _is_row(line):
+            rows += 1
+            last = k
+            if first < 0:
+                first = k
+    return rows, first, last, total
 
 
 _READ_BLOCK = 1 << 22
@@ -283,24 +295,20 @@ class _Scan:
         self.text = text
         self.head: list[str] = []
         self.start = -1
-        motion, after = False, 0
-        total, rows, first, last = 0, 0, -1, -1
-        for k, line in text.lines():
+        motion, after, total = False, 0, 0
+        numbered = text.lines()
+        for k, line in numbered:
             total = k + 1
-            if self.start < 0:
-                self.head.append(line)
-                if not motion:
-                    tokens = line.split()
-                    motion = bool(tokens) and tokens[0] == "MOTION"
-                elif line.strip():
-                    after += 1
-                    if after == 2:
-                        self.start = k + 1
-            elif line and not line.isspace():
-                rows += 1
-                last = k
-                if first < 0:
-                    first = k
+            self.head.append(line)
+            if not motion:
+                tokens = line.split()
+                motion = bool(tokens) and tokens[0] == "MOTION"
+            elif line.strip():
+                after += 1
+                if after == 2:
+                    self.start = k + 1
+                    break
+        rows, first, last, total = _count_rows(numbered, total)  # the rest of the same read
         if text.nul_line is not None:
             raise _nul_error(text.path, text.nul_line)
         self.total, self.rows, self.first_row, self.last_row = total, rows, first, last
@@ -316,7 +324,7 @@ class _Scan:
         def lines() -> Iterator[tuple[int, str]]:
             seen = 0
             for k, line in self.text.lines():
-                if k >= start and line and not line.isspace():
+                if k >= start and _is_row(line):
                     seen += 1
                     yield k, line
             if seen != rows:
