@@ -301,13 +301,25 @@ def _rotation_track_from(q: np.ndarray, motion: Motion, node: int) -> Track:
         del p  # derived from q where read (mrp_values): not held
         return Track(node, KIND_MRP, None, q, ref, np.zeros(3), ref_codes=ref_codes, flips=_flips(rel, ref, q))
     twist = _twist_track_from(q, rel, motion, node)
-    every = np.arange(len(q) - 1)
-    flips = int(np.count_nonzero(_parameter_flips(twist, every)))
+    flips = _count_parameter_flips(twist)
     if flips:  # half-way, a jump is a miss (no curve follows slerp across it)
         swinging = swinging_mrp_track(q, node, ref_codes, ref, rel)
-        if 2 * np.count_nonzero(_parameter_flips(swinging, every)) <= flips:
+        if 2 * _count_parameter_flips(swinging) <= flips:
             return swinging
     return twist
+
+
+FLIP_RUN = 65536
+"""Intervals :func:`_count_parameter_flips` measures at a time."""
+
+
+def _count_parameter_flips(track: Track) -> int:
+    """How many intervals between frames a rotation track's parameters jump across
+    (:func:`_parameter_flips`), a run at a time: each interval's answer is its own, and a
+    long clip's (F - 1, 4) temporaries are not built whole."""
+    intervals = track.frames - 1
+    return sum(int(np.count_nonzero(_parameter_flips(track, np.arange(s, min(s + FLIP_RUN, intervals)))))
+               for s in range(0, intervals, FLIP_RUN))
 
 
 def _twist_track_from(q: np.ndarray, rel: np.ndarray, motion: Motion, node: int) -> Track:
@@ -453,8 +465,8 @@ def _within_budget(deviation: Callable[[np.ndarray], np.ndarray], budget: np.nda
 
 def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
               quantizer_for: Callable[..., Quantizer] = Quantizer.for_range, grid: int = 1,
-              keep: np.ndarray | None = None, values: np.ndarray | None = None) -> None:
-    """Fold the track to a constant if that is within budget, else place its keys.
+              keep: np.ndarray | None = None, values: np.ndarray | None = None, fold: bool = True) -> None:
+    """Fold the track to a constant if that is within budget (and ``fold``), else place its keys.
     ``quantizer_for(lo, hi, step)`` builds the key quantizer (the codec's storage rule);
     ``grid`` the key cells new keys prefer to keep to one each (``fit_keys``). A track with a
     ``half_budget`` is held to its target's half-way path too (constants are judged on the
@@ -466,7 +478,7 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
     half_budget = track.half_budget if frames > 1 else None
     if half_budget is not None:
         err.half_target = halfway_target(track)
-    if track.rest is not None:  # the rest value costs nothing: take it when within budget
+    if fold and track.rest is not None:  # the rest value costs nothing: take it when within budget
         rest = track.rest
 
         def rest_dev(rows: np.ndarray) -> np.ndarray:
@@ -476,7 +488,7 @@ def fit_track(track: Track, mandatory: np.ndarray, fraction: float,
         if _within_budget(rest_dev, track.budget):
             track.keys, track.quantizer, track.constant, track.recon = None, None, track.rest, None
             return
-    if track.kind != KIND_TWIST:
+    if fold and track.kind != KIND_TWIST:
         const = _constant_value(track)
         flat = const if track.kind in VECTOR_KINDS else np.zeros(3)
         if _within_budget(lambda rows: err.at(np.broadcast_to(flat, (len(rows), 3)), rows), track.budget):
@@ -669,6 +681,7 @@ class KeyframeFitter:
     # kept (_retarget_kept), the keys elsewhere kept (untouched_keys). Otherwise every refit
     # re-derives the track and may move keys anywhere, and a long clip's repairs never settle.
     local_refits = False
+    folds = True  # tracks may fold to their rest value or a constant (fit_track)
 
     def mandatory_keys(self) -> np.ndarray:
         """Frames every track keys."""
@@ -692,6 +705,7 @@ class KeyframeFitter:
         self.mandatory = self.mandatory_keys()
         self._fits = 0
         self._decoded: tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]] | None = None
+        self.tracks: dict[tuple[int, int], Track] = {}
 
     # -------------------------------------------------------------- passes
     def _fit(self, track: Track) -> None:
@@ -699,7 +713,7 @@ class KeyframeFitter:
         keep = untouched_keys(track) if self.local_refits else None
         values = track.values  # an MRP track's derived once for the fit and its state
         fit_track(track, self.mandatory, self.settings.quant_fraction, self.quantizer_for, self.key_grid, keep,
-                  values)
+                  values, self.folds)
         if self.local_refits:
             track.fitted = Fitted.of(track, values)
 
@@ -748,12 +762,12 @@ class KeyframeFitter:
                                           | (rot_moved[:, p] if p >= 0 else False))
                     if len(rows):
                         target = comp.rotation_target(i, None if p < 0 else parent_rot[rows], pos_d[i][rows], rows)
-                        if not _retarget_kept(t, target, rows):
-                            _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
+                        if not self._retarget_rows(t, target, rows):
+                            self._retarget_all(t, i, parent_rot, pos_d[i])
                     if len(rows) or key in refit:
                         self._fit(t)
                 elif key in refit or parent_moved or t.target is None:
-                    _retarget(t, comp.rotation_target(i, parent_rot, pos_d[i]), self.motion, i)
+                    self._retarget_all(t, i, parent_rot, pos_d[i])
                     self._fit(t)
             if not need_rot[i]:  # no node reads it (a leaf's, or a node's above end sites alone)
                 rot_d[i] = _UNREAD
@@ -779,6 +793,19 @@ class KeyframeFitter:
             if prev is not None:  # nothing after this node reads its previous pose
                 prev[0][i] = prev[1][i] = prev[2][i] = np.empty(0)
         self._decoded = (rot_d, pos_d, scale_d)
+
+    def _retarget_rows(self, track: Track, target: np.ndarray, rows: np.ndarray) -> bool:
+        """Give a rotation track new targets on frames ``rows`` in its own parameterisation
+        (:func:`_retarget_kept`); False when they do not fit it."""
+        return _retarget_kept(track, target, rows)
+
+    def _retarget_all(self, track: Track, node: int, parent_rot: np.ndarray | None, pos: np.ndarray) -> None:
+        """Give a rotation track its target on every frame from the decoded parent rotation and
+        node position, its parameterisation derived anew (:func:`_retarget`)."""
+        _retarget(track, self.compensation.rotation_target(node, parent_rot, pos), self.motion, node)
+
+    def _prepare(self, tracks: dict[tuple[int, int], Track]) -> None:
+        """Called with the new tracks before the first pass: what a subclass sets on them."""
 
     def _read_poses(self, tracks: dict[tuple[int, int], Track]) -> tuple[np.ndarray, np.ndarray]:
         """Which nodes' decoded positions and rotations a pass reads (N,) bool each: a node's
@@ -840,6 +867,8 @@ class KeyframeFitter:
         reach_rows = [row_of[key] for key in order]
         reach = TrackReach(comp.reach.affects[reach_rows], comp.reach.lever[reach_rows],
                            comp.reach.is_rotation[reach_rows])
+        self._prepare(tracks)
+        self.tracks = tracks  # the last run's, as fitted (a caller that joins fits reads them)
         self._decoded = None
         self._fit_pass(tracks, set(order))
         frames = self.frames
@@ -1034,19 +1063,26 @@ def fit_clip(motion: Motion, cm_per_unit: float, settings: KeyframeSettings, che
     ``plan``: the clip's whole-clip decisions when already measured (:class:`KeyframeFitter`)."""
     started = time.perf_counter()
     fitter = fitter_class(motion, cm_per_unit, settings, plan)
+    best = smallest_fit(motion.name, settings.budget_scales, lambda scale: fitter.run(scale, check))
+    best.seconds = time.perf_counter() - started
+    return best
+
+
+def smallest_fit(name: str, scales: tuple[float, ...], fit: Callable[[float], ClipResult]) -> ClipResult:
+    """The smallest payload of ``fit(scale)`` over the budget ``scales``; a
+    :class:`ToleranceNotMet` naming clip ``name`` and every scale's failure when none met it."""
     best: ClipResult | None = None
     failures = []
-    for scale in settings.budget_scales:
+    for scale in scales:
         try:
-            result = fitter.run(scale, check)
+            result = fit(scale)
         except ToleranceNotMet as exc:
             failures.append(str(exc))
             continue
         if best is None or len(result.payload) < len(best.payload):
             best = result
     if best is None:
-        raise ToleranceNotMet(f"clip {motion.name!r}: " + "; ".join(failures))
-    best.seconds = time.perf_counter() - started
+        raise ToleranceNotMet(f"clip {name!r}: " + "; ".join(failures))
     return best
 
 

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from ..clip_plan import ClipPlan
 from ..keyframes import KIND_TWIST, KeyframeFitter, KeyframeSettings, Track, fit_clip, node_modes
-from ..kinematics import forward_kinematics
+from ..kinematics import forward_kinematics, short_clip
 from ..motion import Motion
 from ..quantize import StepQuantizer
 from ..tolerance import ClipCheck
@@ -56,10 +56,16 @@ class RMASettings(KeyframeSettings):
         version 4): a block costs a row (its first key whole, where its codes start, their Rice
         parameters), and a random access decodes half a block on average. Larger blocks take
         fewer bytes and make random access slower; playback in order costs the same.
+    window_frames : int, default 4096
+        A long clip (one whose whole-clip poses the encoder does not hold,
+        :func:`mocodec.kinematics.short_clip`) is fitted this many frames at a time
+        (:mod:`.rma_windows`), so that its memory is the clip's channels and a window's, not
+        the whole fit's. Shorter clips are fitted whole.
     """
 
     key_grid: int | None = None
     block_keys: int = DEFAULT_BLOCK_KEYS
+    window_frames: int = 4096
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -74,9 +80,13 @@ class RMASettings(KeyframeSettings):
         self.block_keys = int(self.block_keys)
         if self.block_keys not in BLOCK_KEYS:
             raise ValueError(f"block_keys must be one of {', '.join(map(str, BLOCK_KEYS))}, got {self.block_keys}")
+        self.window_frames = int(self.window_frames)
+        if self.window_frames < MIN_WINDOW_FRAMES:
+            raise ValueError(f"window_frames must be at least {MIN_WINDOW_FRAMES}, got {self.window_frames}")
 
 
 BLOCK_KEYS = tuple(1 << s for s in range(1, MAX_BLOCK_SHIFT + 1))
+MIN_WINDOW_FRAMES = 16  # a long clip's windows (rma_windows): seams three frames wide, some frames between
 
 
 def section_prefix(clip_count: int) -> bytes:
@@ -96,13 +106,13 @@ def curve_track(t: Track) -> CurveTrack:
 
 
 def serialize(motion: Motion, tracks: list[Track], block_keys: int = DEFAULT_BLOCK_KEYS,
-              written: WrittenTracks | None = None) -> bytes:
+              written: WrittenTracks | None = None, curve: Callable[[Track], CurveTrack] = curve_track) -> bytes:
     """The ``RMAL`` payload of one clip (docs/FORMAT.md, version 4), keys in blocks of
     ``block_keys``; ``written``: the tracks of this clip's previous payload, not packed again
-    where unchanged."""
+    where unchanged; ``curve``: a fitted track's keys as stored (:func:`curve_track`)."""
     rows, constants, animated = node_modes(motion, tracks)
     modes = [(rm, tm, sm) for rm, tm, sm, _, _, _ in rows]
-    return payload(motion.frame_count, modes, constants, [curve_track(t) for t in animated],
+    return payload(motion.frame_count, modes, constants, [curve(t) for t in animated],
                    Blocks(block_keys.bit_length() - 1), written)
 
 
@@ -140,7 +150,12 @@ class RMAFitter(KeyframeFitter):
 
 def encode_clip(motion: Motion, cm_per_unit: float, settings: RMASettings,
                 check: ClipCheck) -> ClipResult:
-    """Encode one clip within the tolerance on every frame (``check``: payload -> error)."""
+    """Encode one clip within the tolerance on every frame (``check``: payload -> error); a long
+    clip a window of frames at a time (``settings.window_frames``)."""
+    if not short_clip(motion) and motion.frame_count > settings.window_frames:
+        from .rma_windows import fit_windowed  # (it builds on this module)
+
+        return fit_windowed(motion, cm_per_unit, settings, check)
     return fit_clip(motion, cm_per_unit, settings, check, RMAFitter)
 
 

@@ -1,0 +1,331 @@
+"""``rma``'s fit of a long clip a window of frames at a time (docs/LONG_CLIP_PLAN.md, stage 2).
+
+The whole-clip fit holds its targets and decoded poses for every frame of the clip, about
+nine times the raw float32 channels; a window's are a few thousand frames. What must be the
+same in every window is decided once for the whole clip: the clip plan (tracks stored, aim
+points, reach, so the budgets and quantization steps), each rotation track's
+parameterisation (kind, reference, twist axis, and per frame which side of the reference
+and which turn of the twist), and whether the first segment is detached.
+
+Windows meet at seams. At a seam frame ``c`` every track keys ``c - 1``, ``c`` and ``c + 1``.
+A Catmull-Rom segment reads the keys on either side of it and the next one out, so every
+frame up to ``c + 1`` depends only on keys up to ``c + 1``, and every frame from ``c - 1`` on only
+on keys from ``c - 1`` on: the window before the seam ends at ``c + 1``, the next one starts at
+``c - 1`` with those three keys as they were fitted (frozen), and the asset decodes every frame
+of a window as the window's own one-clip asset does. The runtime check of each window then
+checks its frames exactly. Half-way between frames, the interval ``(c, c + 1)`` is checked in
+the window after the seam and ``(c - 1, c)`` in the one before (the other window lacks a key its
+segment reads). Windows run in order, each taking its frozen keys from the one before.
+
+A window whose fit halves a track's quantization step (:func:`mocodec.keyframes.fit_track`)
+cannot keep it to itself, since the format stores one step a track: the round goes on with
+the finer step from there, and then the clip is fitted again from the first window with every
+step the round halved (at most :data:`MAX_ROUNDS` rounds).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import rotations as R
+from ..clip_plan import ROT, ClipPlan, plan_clip
+from ..encode import OneClipCheck, RuntimeCheck
+from ..keyframes import KIND_TWIST, Track, _retarget_kept, _rotation_track_from, smallest_fit
+from ..motion import Motion
+from ..tolerance import ClipCheck, OverRows, ToleranceNotMet, within
+from . import ClipResult
+from .rma import MIN_WINDOW_FRAMES, RMAFitter, RMASettings, frame0_jumps, section_prefix, serialize
+from .rma_bitstream import CurveTrack
+
+SEAM = 3
+"""Keys every track keeps at a seam: the frame before it, the seam frame and the one after."""
+
+MAX_ROUNDS = 4
+"""Fits of the whole clip, window by window, before a step that keeps halving is an error."""
+
+@dataclass
+class RotationParameters:
+    """A rotation track's parameterisation over the whole clip, chosen from the node's original
+    local rotations by the rules of the whole-clip fit (:func:`mocodec.keyframes._rotation_track_from`).
+
+    ``negated`` (packed bits, a frame each): the frames whose original local rotation the
+    parameters read negated (the side of the reference, for MRPs); for a twist, ``turn`` (F,)
+    float32: its angle on every frame (which turn), and ``side`` (packed bits): the frames whose
+    MRPs are of the swing negated. A window maps its compensated targets into these
+    (:func:`_retarget_kept`): the same reference, axis, side and turn on every frame, whatever
+    window it is in. (Bits and a float a frame: a long clip's parameters are not held.)"""
+
+    kind: int
+    ref: np.ndarray
+    ref_codes: np.ndarray
+    axis: np.ndarray
+    axis_codes: np.ndarray | None
+    negated: np.ndarray
+    turn: np.ndarray | None = None
+    side: np.ndarray | None = None
+
+    def target(self, raw: np.ndarray, start: int) -> np.ndarray:
+        """The original local rotations ``raw`` (n, 4) of frames ``start ...`` as the parameters read them."""
+        return raw * _signs(self.negated, start, len(raw))[:, None]
+
+    def values(self, target: np.ndarray, start: int) -> np.ndarray | None:
+        """A twist track's values (n, 4) on frames ``start ...`` of its :meth:`target` there
+        (None: an MRP track's are derived from its target)."""
+        if self.turn is None:
+            return None
+        theta = self.turn[start:start + len(target)].astype(np.float64)
+        rel = _swing(target, theta, self.axis, self.ref) * _signs(self.side, start, len(target))[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):  # at the antipode: NaN, as the whole fit's
+            return np.concatenate((theta[:, None], R.mrp_from_quat(rel)), axis=1)
+
+
+def _signs(packed: np.ndarray, start: int, count: int) -> np.ndarray:
+    """-1 where bits ``start ... start + count - 1`` of ``packed`` are set, else 1."""
+    first, skip = divmod(start, 8)
+    bits = np.unpackbits(packed[first:first + (skip + count + 7) // 8])[skip:skip + count]
+    return np.where(bits.astype(bool), -1.0, 1.0)
+
+
+def _swing(q: np.ndarray, theta: np.ndarray, axis: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Rotations ``q`` less their twist ``theta`` about ``axis``, relative to ``ref`` (n, 4)."""
+    rest = R.quat_multiply(R.quat_conjugate(R.quat_from_axis_angle(axis, theta)), q)
+    return R.quat_multiply(R.quat_conjugate(ref), rest)
+
+
+def rotation_parameters(motion: Motion, plan: ClipPlan) -> dict[int, RotationParameters]:
+    """Per node with a stored rotation track, its :class:`RotationParameters`, one node's
+    rotations at a time (a node's (F, 4) and its fit's temporaries, not the clip's)."""
+    out = {}
+    for i, part, stored in zip(plan.track_nodes, plan.track_parts, plan.stored):
+        if part != ROT or not stored:
+            continue
+        raw = np.asarray(motion.rotations[:, i], dtype=np.float64)
+        t = _rotation_track_from(raw, motion, i)
+        negated = np.sum(t.target * raw, axis=1) < 0.0
+        if t.derived:  # MRPs of the target relative to the reference, on the other side where flipped
+            out[i] = RotationParameters(t.kind, t.ref, t.ref_codes, t.axis, t.axis_codes, np.packbits(negated ^ t.flips))
+            continue
+        turn = t.values[:, 0].astype(np.float32)
+        rel = _swing(t.target, turn.astype(np.float64), t.axis, t.ref)
+        side = np.sum(rel * R.quat_from_mrp(t.values[:, 1:]), axis=1) < 0.0
+        out[i] = RotationParameters(t.kind, t.ref, t.ref_codes, t.axis, t.axis_codes, np.packbits(negated), turn,
+                                    np.packbits(side))
+    return out
+
+
+def window_bounds(frames: int, window: int, grid: int = 1) -> list[tuple[int, int]]:
+    """The windows ``[start, stop)`` of a clip of ``frames`` frames in windows of at most about
+    ``window`` frames: consecutive ones share the three frames around a seam. A seam is the
+    first frame of a key cell of ``grid`` frames (a window starts on a cell boundary, so its
+    cells are the clip's)."""
+    count = -(-frames // window)
+    if count < 2:
+        return [(0, frames)]
+    seams = []
+    for k in range(1, count):
+        c = int(round(k * frames / count))
+        seams.append(grid * ((c - 1) // grid) + 1)
+    starts = [0] + [c - 1 for c in seams]
+    stops = [c + 2 for c in seams] + [frames]
+    return list(zip(starts, stops))
+
+
+def window_plan(plan: ClipPlan, start: int, stop: int, first: bool, last: bool) -> ClipPlan:
+    """The clip's plan for frames ``[start, stop)``: its whole-clip decisions, and its held
+    intervals there, less the one next to each seam that the window cannot check exactly."""
+    held = None
+    if plan.held is not None:
+        held = plan.held[start:stop - 1].copy()
+        if not first:
+            held[0] = False
+        if not last:
+            held[-1] = False
+    return ClipPlan(stop - start, plan.track_nodes, plan.track_parts, plan.stored, plan.spans, plan.aim,
+                    plan.reach, held)
+
+
+class WindowFitter(RMAFitter):
+    """:class:`RMAFitter` on one window of a long clip: every stored track keyed (none folds,
+    so every window stores the same tracks), rotations in the clip's parameterisation, the
+    first :data:`SEAM` keys frozen to the window before's and, before a seam, the last
+    :data:`SEAM` frames keys."""
+
+    folds = False
+
+    def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings, plan: ClipPlan, *,
+                 start: int, params: dict[int, RotationParameters], frozen: dict[tuple[int, int], np.ndarray],
+                 seam_after: bool, split: bool, quant_scales: dict[tuple[int, int], float]) -> None:
+        super().__init__(motion, cm_per_unit, settings, plan)
+        self.start, self.params, self.frozen = start, params, frozen
+        self.seam_after, self.quant_scales = seam_after, quant_scales
+        self.split = split
+        self.mandatory = self.mandatory_keys()
+
+    def mandatory_keys(self) -> np.ndarray:
+        f = self.frames
+        keys = [0, f - 1] + ([1] if self.split else [])
+        if getattr(self, "frozen", None):
+            keys += list(range(SEAM))
+        if getattr(self, "seam_after", False):
+            keys += list(range(f - SEAM, f))
+        return np.unique(keys)
+
+    def _prepare(self, tracks: dict[tuple[int, int], Track]) -> None:
+        for key, t in tracks.items():
+            t.rest = None
+            t.quant_scale = self.quant_scales.get(key, 1.0)
+            frozen = self.frozen.get(key)
+            if frozen is not None:  # the error there is the window before's, already checked
+                budget = np.array(t.budget, dtype=np.float64)
+                budget[:SEAM] = np.inf
+                t.budget = budget
+            if key[1] != ROT:
+                if frozen is not None:
+                    t.values[:SEAM] = frozen  # (its own copy of the clip's values)
+                continue
+            p = self.params[key[0]]
+            t.kind, t.ref, t.ref_codes, t.axis, t.axis_codes = p.kind, p.ref, p.ref_codes, p.axis, p.axis_codes
+            t.mrp_limit = np.inf  # the clip's parameterisation, whatever the window's targets
+            t.target = p.target(np.asarray(self.motion.rotations[:, key[0]], dtype=np.float64), self.start)
+            twist = p.values(t.target, self.start)
+            t.__dict__["_values"] = twist
+            t.flips = None if twist is not None else np.zeros(self.frames, dtype=bool)
+
+    def _retarget_rows(self, track: Track, target: np.ndarray, rows: np.ndarray) -> bool:
+        kept = _retarget_kept(track, target, rows)
+        if kept:
+            self._freeze(track)
+        return kept
+
+    def _retarget_all(self, track: Track, node: int, parent_rot: np.ndarray | None, pos: np.ndarray) -> None:
+        if not _retarget_kept(track, self.compensation.rotation_target(node, parent_rot, pos)):
+            raise ToleranceNotMet(f"node {node}: its targets in frames {self.start}-{self.start + self.frames - 1} "
+                                  "do not fit the clip's rotation parameters")
+        self._freeze(track)
+
+    def _freeze(self, track: Track) -> None:
+        """Hold a rotation track's frozen keys' values (held values from then on)."""
+        frozen = self.frozen.get((track.node, ROT))
+        if frozen is None:
+            return
+        values = track.values
+        if track.derived or not np.array_equal(values[:SEAM], frozen):
+            values = np.array(values, dtype=np.float64)
+            values[:SEAM] = frozen
+            track.values = values
+
+
+@dataclass
+class _Joined:
+    """A track's keys so far, window after window: clip frames and lattice integers (int32:
+    |q| < 2**30), and the track of the last window (its kind, reference, axis, step)."""
+
+    track: Track
+    frames: list[np.ndarray]
+    q: list[np.ndarray]
+
+    def curve(self, split: bool) -> CurveTrack:
+        """The keys as the payload stores them (the lists let go)."""
+        frames = np.concatenate(self.frames).astype(np.int64)
+        self.frames = []
+        q = np.concatenate(self.q).astype(np.int64)
+        self.q = []
+        t = self.track
+        step = t.quantizer.step
+        return CurveTrack(kind=t.kind, frames=frames, q=q, step=float(step[-1]),
+                          angle_step=float(step[0]) if t.kind == KIND_TWIST else 0.0,
+                          ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=split)
+
+
+def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck,
+                 window: int | None = None) -> ClipResult:
+    """Encode one clip within the tolerance on every frame, fitted a window of about
+    ``window`` frames at a time (``settings.window_frames`` when None); the smallest payload
+    over ``settings.budget_scales``. The joined payload is checked once more on every frame
+    by ``check``."""
+    started = time.perf_counter()
+    window = settings.window_frames if window is None else int(window)
+    if window < MIN_WINDOW_FRAMES:
+        raise ValueError(f"window_frames must be at least {MIN_WINDOW_FRAMES}, got {window}")
+    plan = plan_clip(motion, cm_per_unit, settings.shell_cm, None, settings.halfway_factor > 0.0)
+    params = rotation_parameters(motion, plan)
+    bounds = window_bounds(motion.frame_count, window, settings.key_grid)
+    split = frame0_jumps(motion, cm_per_unit)
+    best = smallest_fit(motion.name, settings.budget_scales, lambda scale: _fit_at_scale(
+        motion, cm_per_unit, settings, check, plan, params, bounds, split, scale))
+    best.seconds = time.perf_counter() - started
+    return best
+
+
+def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
+                  params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
+                  scale: float) -> ClipResult:
+    quant_scales: dict[tuple[int, int], float] = {}
+    for rounds in range(1, MAX_ROUNDS + 1):
+        halved = False
+        joined: dict[tuple[int, int], _Joined] = {}
+        frozen: dict[tuple[int, int], np.ndarray] = {}
+        stats: dict[str, Any] = {"keys": 0, "tracks": 0, "repairs": 0, "budget_scale": scale,
+                                 "windows": len(bounds), "window_rounds": rounds}
+        for k, (start, stop) in enumerate(bounds):
+            part = motion.slice(start, stop)
+            first, last = k == 0, k == len(bounds) - 1
+            fitter = WindowFitter(part, cm_per_unit, settings, window_plan(plan, start, stop, first, last),
+                                  start=start, params=params, frozen=frozen, seam_after=not last,
+                                  split=split and first, quant_scales=quant_scales)
+            own = OneClipCheck(RuntimeCheck([part], [cm_per_unit], "rma"), section_prefix(1))
+            result = fitter.run(scale, own)
+            stats["repairs"] += result.stats["repairs"]
+            for name in ("halfway_released", "halfway_repaired"):
+                if name in result.stats:
+                    stats[name] = stats.get(name, 0) + result.stats[name]
+            frozen = {}
+            for key, t in fitter.tracks.items():
+                if t.quant_scale < quant_scales.get(key, 1.0):
+                    quant_scales[key] = t.quant_scale  # finer from here on, and from the start next round
+                    halved = True
+                keys = np.asarray(t.keys, dtype=np.int64) + start
+                q = t.quantizer.encode(t.key_values)
+                drop = 0 if first else SEAM  # the frozen keys, the window before's
+                j = joined.get(key)
+                if j is None:
+                    j = joined[key] = _Joined(t, [], [])
+                elif not halved:
+                    _same_keys(j, t, keys, q)
+                j.track = t
+                j.frames.append(keys[drop:].astype(np.int32))
+                j.q.append(q[drop:].astype(np.int32))
+                if not last:
+                    frozen[key] = np.asarray(t.key_values, dtype=np.float64)[-SEAM:]
+            del fitter, part, own
+        if not halved:
+            break
+    else:
+        raise ToleranceNotMet(f"quantization steps still halving after {MAX_ROUNDS} fits of the clip in windows")
+    tracks = [Track(t.node, t.kind, np.zeros((0, 3)), np.zeros((0, 4)), t.ref, t.axis, keys=np.zeros(0))
+              for t in (j.track for j in joined.values())]
+    stats["keys"] = sum(sum(len(f) for f in j.frames) for j in joined.values())
+    stats["tracks"] = len(tracks)
+    curves = {id(t): j for t, j in zip(tracks, joined.values())}
+    payload = serialize(motion, tracks, settings.block_keys, curve=lambda t: curves[id(t)].curve(split))
+    del tracks, curves, joined
+    # The windows' checks covered every frame; the joined payload is checked once more whole
+    # (a seam that did not join as it should is a bug, not a miss to repair).
+    tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+    errors = check(payload, over=tol) if getattr(check, "over_rows", False) else OverRows.of(check(payload), tol)
+    if not within(errors, tol):
+        raise ToleranceNotMet(f"the clip joined from {len(bounds)} windows is over the tolerance on "
+                              f"{len(errors.rows)} frames (a bug in the windowed fit)")
+    return ClipResult(payload, errors, stats)
+
+
+def _same_keys(joined: _Joined, t: Track, keys: np.ndarray, q: np.ndarray) -> None:
+    """A window's frozen keys (clip frames ``keys``, integers ``q``) are the window before's
+    last ones, on the same lattice."""
+    if not (np.array_equal(keys[:SEAM], joined.frames[-1][-SEAM:])
+            and np.array_equal(joined.track.quantizer.step, t.quantizer.step)
+            and np.array_equal(q[:SEAM], joined.q[-1][-SEAM:])):
+        raise AssertionError(f"node {t.node}: the keys at the seam at frame {keys[1]} do not join")

@@ -1,0 +1,177 @@
+"""rma's fit of a long clip a window of frames at a time (encoder/mocodec/codecs/rma_windows.py,
+issue 16 §2): windows that cover the clip and meet at seams on key cells, sample clips forced
+through small windows within the tolerance on every frame and close to the whole fit's bytes,
+keys that join at every seam, a twist that goes round in one parameterisation, a halved step
+that refits the clip, and the setting's bad values."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mocodec import rotations as R
+from mocodec.codecs import rma_windows
+from mocodec.codecs.rma import RMAFitter, RMASettings, section_prefix
+from mocodec.codecs.rma_reference import decode_keys, decode_payload
+from mocodec.codecs.rma_windows import SEAM, fit_windowed, window_bounds
+from mocodec.encode import _single_clip_asset, encode_motions, evaluate, make_check
+from mocodec.io import read_bvh
+from mocodec.keyframes import KIND_TWIST, fit_clip
+from mocodec.motion import Motion, Skeleton
+from mocodec.runtime import Asset
+from mocodec.tolerance import Tolerance
+from mocodec.units import resolve_units
+
+
+@pytest.mark.parametrize("frames, window, grid", [(1000, 100, 1), (1000, 100, 4), (4097, 4096, 8), (50, 16, 2),
+                                                  (864_000, 4096, 4), (100, 100, 1)])
+def test_windows_cover_the_clip_and_meet_at_seams_on_key_cells(frames, window, grid):
+    bounds = window_bounds(frames, window, grid)
+    assert bounds[0][0] == 0 and bounds[-1][1] == frames
+    if frames <= window:
+        assert bounds == [(0, frames)]
+        return
+    for (a, b), (c, d) in zip(bounds, bounds[1:]):
+        assert b - c == SEAM and c > a and d > b  # the three frames around the seam c + 1, in both
+        assert c % grid == 0  # the window after starts on a cell boundary (cells start at 1 mod grid)
+    assert max(b - a for a, b in bounds) <= window + SEAM + grid
+
+
+def _fit(m: Motion, tolerance: float, window: int | None):
+    cm = resolve_units(m.skeleton, "cmu").cm_per_unit
+    settings = RMASettings(Tolerance(tolerance))
+    check = make_check([m], [cm], "rma").one_clip(0, section_prefix(1))
+    if window is None:
+        return fit_clip(m, cm, settings, check, RMAFitter), cm
+    return fit_windowed(m, cm, settings, check, window), cm
+
+
+def _errors(m: Motion, cm: float, payload: bytes):
+    asset = _single_clip_asset(m, cm, "rma", payload, section_prefix(1))
+    (report,) = evaluate(asset, [m], [resolve_units(m.skeleton, "cmu")])
+    return asset, report
+
+
+@pytest.mark.parametrize("tolerance", [1.0, 0.1])
+def test_sample_clips_fitted_in_windows_keep_the_tolerance_and_join_at_every_seam(sample_paths, tolerance):
+    for path in sample_paths:
+        m = read_bvh(path)
+        window = 128
+        whole, cm = _fit(m, tolerance, None)
+        result, _ = _fit(m, tolerance, window)
+        bounds = window_bounds(m.frame_count, window, RMASettings(Tolerance(tolerance)).key_grid)
+        assert result.stats["windows"] == len(bounds) > 1
+        asset, report = _errors(m, cm, result.payload)
+        assert report.max_cm <= tolerance + 1e-9, (path.name, report.max_cm)
+        # A seam costs about two keys a track: a few % at windows this small.
+        assert len(result.payload) <= 1.15 * len(whole.payload), (path.name, len(result.payload), len(whole.payload))
+        _, tracks = decode_keys(result.payload)
+        assert len(tracks) == result.stats["tracks"]
+        for start, _ in bounds[1:]:
+            seam = np.arange(start, start + SEAM)
+            for t in tracks:
+                assert np.isin(seam, t["frames"]).all(), (path.name, start)
+        # The Python reference reads the joined payload as the runtime does.
+        frames = np.arange(m.frame_count)
+        rot, trans, _ = decode_payload(result.payload, m.skeleton, frames)
+        c_rot, c_trans = Asset(asset).sample_frames(0, frames)
+        sign = np.sign(np.sum(c_rot * rot, axis=-1, keepdims=True))
+        assert np.abs(c_rot - sign * rot).max() <= 1e-5
+        assert np.abs(c_trans - trans).max() <= 1e-3
+
+
+def test_a_windowed_fit_is_deterministic_and_each_window_starts_from_the_keys_before(sample_paths, monkeypatch):
+    m = read_bvh(sample_paths[0])
+    seen = []
+    run = rma_windows.WindowFitter.run
+
+    def spy(self, scale, check):
+        out = run(self, scale, check)
+        seen.append((self.start, {k: (np.asarray(t.keys) + self.start, t.quantizer.encode(t.key_values))
+                                  for k, t in self.tracks.items()}))
+        return out
+    monkeypatch.setattr(rma_windows.WindowFitter, "run", spy)
+    first, _ = _fit(m, 1.0, 80)
+    again, _ = _fit(m, 1.0, 80)
+    assert first.payload == again.payload
+    windows = seen[:len(seen) // 2]
+    for (_, before), (start, after) in zip(windows, windows[1:]):
+        for key, (frames, q) in after.items():
+            assert np.array_equal(frames[:SEAM], np.arange(start, start + SEAM))
+            assert np.array_equal(before[key][0][-SEAM:], frames[:SEAM])
+            assert np.array_equal(before[key][1][-SEAM:], q[:SEAM]), key
+
+
+def _turning_clip(frames: int = 1500) -> Motion:
+    """A root turning round six times about up while it bobs, and an arm swinging below it: a
+    twist track whose angle passes many turns, across many windows."""
+    sk = Skeleton(["Hips", "Arm", "Arm_End"], [-1, 0, 1], [[0, 90, 0], [0, 10, 0], [0, 30, 0]],
+                  [(0, 1, 2, 5, 3, 4), (5, 3, 4), ()], [False, False, True])
+    f = np.arange(frames, dtype=np.float64)
+    yaw = 12.0 * np.pi * f / frames
+    tilt = np.radians(10.0) * np.sin(2.0 * np.pi * f / 90.0)
+    rot = np.tile([0.0, 0.0, 0.0, 1.0], (frames, 3, 1))
+    rot[:, 0] = R.quat_multiply(R.quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), yaw),
+                                R.quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), tilt))
+    rot[:, 1] = R.quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(40.0) * np.sin(2.0 * np.pi * f / 70.0))
+    trans = np.broadcast_to(sk.offsets, (frames, 3, 3)).copy()
+    trans[:, 0, 0] = 50.0 * np.sin(2.0 * np.pi * f / 400.0)
+    return Motion(sk, rot, trans, 1.0 / 120.0, "turning")
+
+
+def test_a_root_turning_round_keeps_one_twist_across_windows():
+    m = _turning_clip()
+    whole, cm = _fit(m, 0.5, None)
+    result, _ = _fit(m, 0.5, 100)
+    assert result.stats["windows"] == 15
+    _, report = _errors(m, cm, result.payload)
+    assert report.max_cm <= 0.5 + 1e-9
+    _, tracks = decode_keys(result.payload)
+    assert tracks[0]["kind"] == KIND_TWIST
+    assert len(result.payload) <= 1.2 * len(whole.payload)
+
+
+def test_a_step_halved_in_a_window_fits_the_clip_again_with_it(sample_paths, monkeypatch):
+    """The format keeps one step a track: a window that needs a finer one has every window
+    fitted again with it (stats ``window_rounds``)."""
+    import mocodec.keyframes
+
+    m = read_bvh(sample_paths[0])
+    fit_keys = mocodec.keyframes.fit_keys
+    calls = {"n": 0}
+
+    def fails_once(*args, **kw):  # the 40th fit reports its key frames over budget, once
+        keys, values, ok = fit_keys(*args, **kw)
+        calls["n"] += 1
+        return keys, values, ok and calls["n"] != 40
+    monkeypatch.setattr(mocodec.keyframes, "fit_keys", fails_once)
+    result, cm = _fit(m, 1.0, 64)
+    assert result.stats["window_rounds"] == 2
+    _, report = _errors(m, cm, result.payload)
+    assert report.max_cm <= 1.0 + 1e-9
+    _, tracks = decode_keys(result.payload)
+    monkeypatch.setattr(mocodec.keyframes, "fit_keys", fit_keys)
+    plain, _ = _fit(m, 1.0, 64)
+    assert plain.stats["window_rounds"] == 1
+    _, plain_tracks = decode_keys(plain.payload)
+    halved = [a for a, b in zip(tracks, plain_tracks) if not np.array_equal(a["steps"], b["steps"])]
+    assert len(halved) == 1 and np.allclose(halved[0]["steps"], 0.5 * next(
+        b["steps"] for a, b in zip(tracks, plain_tracks) if a is halved[0]), rtol=1e-6)
+
+
+def test_a_long_clip_is_fitted_in_windows_through_encode_and_a_short_one_whole(sample_paths, monkeypatch):
+    import mocodec.kinematics
+
+    m = read_bvh(sample_paths[1])
+    units = [resolve_units(m.skeleton, "cmu")]
+    whole = encode_motions([m], units, "rma", Tolerance(1.0), {"window_frames": 100})
+    assert "windows" not in whole.clips[0].stats  # short: fitted whole, whatever the setting
+    monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
+    long = encode_motions([m], units, "rma", Tolerance(1.0), {"window_frames": 100})
+    assert long.clips[0].stats["windows"] == len(window_bounds(m.frame_count, 100, 4)) > 1
+    assert long.max_error_cm <= 1.0
+
+
+@pytest.mark.parametrize("value", [15, 0, -4])
+def test_window_frames_below_sixteen_is_refused(value):
+    with pytest.raises(ValueError, match="window_frames must be at least 16"):
+        RMASettings(Tolerance(1.0), window_frames=value)
