@@ -23,17 +23,24 @@ from mocodec.units import resolve_units
 
 
 @pytest.mark.parametrize("frames, window, grid", [(1000, 100, 1), (1000, 100, 4), (4097, 4096, 8), (50, 16, 2),
-                                                  (864_000, 4096, 4), (100, 100, 1)])
+                                                  (864_000, 4096, 4), (100, 100, 1), (17, 16, 8), (20, 16, 8)])
 def test_windows_cover_the_clip_and_meet_at_seams_on_key_cells(frames, window, grid):
     bounds = window_bounds(frames, window, grid)
     assert bounds[0][0] == 0 and bounds[-1][1] == frames
     if frames <= window:
         assert bounds == [(0, frames)]
-        return
     for (a, b), (c, d) in zip(bounds, bounds[1:]):
-        assert b - c == SEAM and c > a and d > b  # the three frames around the seam c + 1, in both
+        assert b - c == SEAM and d > b  # the three frames around the seam c + 1, in both
+        assert c > a + 1  # frames 0 and 1 (a detached first segment) in window 0 alone
         assert c % grid == 0  # the window after starts on a cell boundary (cells start at 1 mod grid)
     assert max(b - a for a, b in bounds) <= window + SEAM + grid
+
+
+def test_a_seam_rounded_onto_the_clip_start_is_left_out():
+    # 17 frames in windows of 16 on 8-frame cells: the only seam would round to frame 1, and a
+    # window starting at frame 0 again (without the detached first segment) would check a
+    # curve the asset does not have.
+    assert window_bounds(17, 16, 8) == [(0, 17)]
 
 
 def _fit(m: Motion, tolerance: float, window: int | None):
@@ -130,32 +137,58 @@ def test_a_root_turning_round_keeps_one_twist_across_windows():
     assert len(result.payload) <= 1.2 * len(whole.payload)
 
 
-def test_a_step_halved_in_a_window_fits_the_clip_again_with_it(sample_paths, monkeypatch):
-    """The format keeps one step a track: a window that needs a finer one has every window
-    fitted again with it (stats ``window_rounds``)."""
+def test_a_step_halved_in_a_later_window_puts_the_keys_before_on_the_finer_lattice(sample_paths, monkeypatch):
+    """The format keeps one step a track: a window that needs a finer one (half, exactly, in
+    binary32) has the keys of the windows before doubled onto it (the same values), and its
+    frozen keys decode as they did, so the window's own fit stands."""
     import mocodec.keyframes
 
     m = read_bvh(sample_paths[0])
     fit_keys = mocodec.keyframes.fit_keys
     calls = {"n": 0}
 
-    def fails_once(*args, **kw):  # the 40th fit reports its key frames over budget, once
+    def fails_once(*args, **kw):  # the 40th fit (in window 1, which has frozen keys) reports a key frame over budget
         keys, values, ok = fit_keys(*args, **kw)
         calls["n"] += 1
         return keys, values, ok and calls["n"] != 40
     monkeypatch.setattr(mocodec.keyframes, "fit_keys", fails_once)
     result, cm = _fit(m, 1.0, 64)
-    assert result.stats["window_rounds"] == 2
+    assert result.stats["steps_halved"] == 1 and result.stats["window_rounds"] == 1
     _, report = _errors(m, cm, result.payload)
     assert report.max_cm <= 1.0 + 1e-9
     _, tracks = decode_keys(result.payload)
     monkeypatch.setattr(mocodec.keyframes, "fit_keys", fit_keys)
     plain, _ = _fit(m, 1.0, 64)
-    assert plain.stats["window_rounds"] == 1
+    assert plain.stats["steps_halved"] == 0
     _, plain_tracks = decode_keys(plain.payload)
-    halved = [a for a, b in zip(tracks, plain_tracks) if not np.array_equal(a["steps"], b["steps"])]
-    assert len(halved) == 1 and np.allclose(halved[0]["steps"], 0.5 * next(
-        b["steps"] for a, b in zip(tracks, plain_tracks) if a is halved[0]), rtol=1e-6)
+    halved = [(a, b) for a, b in zip(tracks, plain_tracks) if not np.array_equal(a["steps"], b["steps"])]
+    assert len(halved) == 1
+    finer, coarse = halved[0]
+    assert np.array_equal(finer["steps"] * 2, coarse["steps"])
+    # Window 0's keys are the same keys on the finer lattice: twice the integers.
+    first = window_bounds(m.frame_count, 64, RMASettings(Tolerance(1.0)).key_grid)[1][0]
+    before = finer["frames"] < first
+    assert np.array_equal(finer["frames"][before], coarse["frames"][coarse["frames"] < first])
+    assert np.array_equal(finer["q"][before], 2 * coarse["q"][coarse["frames"] < first])
+
+
+@pytest.mark.parametrize("tolerance, window", [(1.0, 16), (1.0, 32), (0.1, 24), (0.1, 48)])
+def test_a_gltf_rig_with_rest_rotations_and_scales_halving_steps_in_windows_keeps_the_tolerance(
+        repo_root, tolerance, window):
+    """A glTF rig (rest rotations that are not the identity, scale tracks, 77 nodes) whose
+    windows halve steps where keys are frozen: each such window keeps the frozen keys' values,
+    and the clip meets the tolerance in one round."""
+    from mocodec.io.gltf import read_gltf
+
+    (m,) = read_gltf(repo_root / "encoder" / "mocodec" / "samples" / "gltf" / "Luanti_spider_animated.gltf")
+    units = resolve_units(m.skeleton)
+    settings = RMASettings(Tolerance(tolerance))
+    check = make_check([m], [units.cm_per_unit], "rma").one_clip(0, section_prefix(1))
+    result = fit_windowed(m, units.cm_per_unit, settings, check, window)
+    assert result.stats["steps_halved"] > 0 and result.stats["window_rounds"] == 1
+    asset = _single_clip_asset(m, units.cm_per_unit, "rma", result.payload, section_prefix(1))
+    (report,) = evaluate(asset, [m], [units])
+    assert report.max_cm <= tolerance + 1e-9
 
 
 def test_a_long_clip_is_fitted_in_windows_through_encode_and_a_short_one_whole(sample_paths, monkeypatch):
@@ -175,3 +208,22 @@ def test_a_long_clip_is_fitted_in_windows_through_encode_and_a_short_one_whole(s
 def test_window_frames_below_sixteen_is_refused(value):
     with pytest.raises(ValueError, match="window_frames must be at least 16"):
         RMASettings(Tolerance(1.0), window_frames=value)
+
+
+def test_tracks_that_barely_leave_rest_stay_at_rest_in_every_window(repo_root):
+    """A glTF rig whose tracks mostly leave their rest by float noise (RiggedFigure: 57 tracks
+    stored, 3 keyed by the whole fit): the windows leave those at rest for the whole clip, as
+    the whole fit folds them, rather than key each in every window."""
+    from mocodec.io.gltf import read_gltf
+
+    (m,) = read_gltf(repo_root / "encoder" / "mocodec" / "samples" / "gltf" / "RiggedFigure.glb")
+    units = resolve_units(m.skeleton)
+    settings = RMASettings(Tolerance(1.0))
+    check = make_check([m], [units.cm_per_unit], "rma").one_clip(0, section_prefix(1))
+    whole = fit_clip(m, units.cm_per_unit, settings, check, RMAFitter)
+    result = fit_windowed(m, units.cm_per_unit, settings, check, 16)
+    assert result.stats["windows"] == 2 and result.stats["at_rest"] >= 50
+    assert len(result.payload) <= 1.3 * len(whole.payload)
+    asset = _single_clip_asset(m, units.cm_per_unit, "rma", result.payload, section_prefix(1))
+    (report,) = evaluate(asset, [m], [units])
+    assert report.max_cm <= 1.0 + 1e-9

@@ -12,20 +12,25 @@ A Catmull-Rom segment reads the keys on either side of it and the next one out, 
 frame up to ``c + 1`` depends only on keys up to ``c + 1``, and every frame from ``c - 1`` on only
 on keys from ``c - 1`` on: the window before the seam ends at ``c + 1``, the next one starts at
 ``c - 1`` with those three keys as they were fitted (frozen), and the asset decodes every frame
-of a window as the window's own one-clip asset does. The runtime check of each window then
-checks its frames exactly. Half-way between frames, the interval ``(c, c + 1)`` is checked in
+of a window as the window's own one-clip asset does, except the window's last frame: the
+runtime evaluates a clip's last frame at the end of its last segment in binary32, about 1e-8
+rad from the key, which the window after checks as the key it is. Half-way between frames, the interval ``(c, c + 1)`` is checked in
 the window after the seam and ``(c - 1, c)`` in the one before (the other window lacks a key its
 segment reads). Windows run in order, each taking its frozen keys from the one before.
 
 A window whose fit halves a track's quantization step (:func:`mocodec.keyframes.fit_track`)
-cannot keep it to itself, since the format stores one step a track: the round goes on with
-the finer step from there, and then the clip is fitted again from the first window with every
-step the round halved (at most :data:`MAX_ROUNDS` rounds).
+cannot keep it to itself, since the format stores one step a track. A halved step is exactly
+half in binary32, so the frozen keys (q x step) are 2q on the finer lattice and decode as
+before, and the keys of the windows before are doubled onto it when they are joined: the same
+values, nothing fitted again. (A step that were not a power of two finer would have the clip
+fitted again from the first window with it, at most :data:`MAX_ROUNDS` times.) A track whose
+original stays near its rest on every frame is left at rest for the whole clip
+(:func:`near_rest`): windows fold no track, so that each stores the same ones.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -34,8 +39,9 @@ from .. import rotations as R
 from ..clip_plan import ROT, ClipPlan, plan_clip
 from ..encode import OneClipCheck, RuntimeCheck
 from ..keyframes import KIND_TWIST, Track, _retarget_kept, _rotation_track_from, smallest_fit
-from ..motion import Motion
-from ..tolerance import ClipCheck, OverRows, ToleranceNotMet, within
+from ..motion import Motion, frame_runs
+from ..quantize import StepQuantizer, f32_exact
+from ..tolerance import ClipCheck, OverRows, ToleranceNotMet, initial_budgets, within
 from . import ClipResult
 from .rma import MIN_WINDOW_FRAMES, RMAFitter, RMASettings, frame0_jumps, section_prefix, serialize
 from .rma_bitstream import CurveTrack
@@ -122,12 +128,14 @@ def window_bounds(frames: int, window: int, grid: int = 1) -> list[tuple[int, in
     first frame of a key cell of ``grid`` frames (a window starts on a cell boundary, so its
     cells are the clip's)."""
     count = -(-frames // window)
-    if count < 2:
-        return [(0, frames)]
-    seams = []
+    seams: list[int] = []
     for k in range(1, count):
         c = int(round(k * frames / count))
-        seams.append(grid * ((c - 1) // grid) + 1)
+        c = grid * ((c - 1) // grid) + 1
+        # Frames between the seams' triples (and frames 0 and 1 before the first: a detached
+        # first segment is window 0's): a seam a cell rounds too near is left out.
+        if c >= (seams[-1] + SEAM + 1 if seams else SEAM) and c + SEAM < frames:
+            seams.append(c)
     starts = [0] + [c - 1 for c in seams]
     stops = [c + 2 for c in seams] + [frames]
     return list(zip(starts, stops))
@@ -221,11 +229,34 @@ class WindowFitter(RMAFitter):
 @dataclass
 class _Joined:
     """A track's keys so far, window after window: clip frames and lattice integers (int32:
-    |q| < 2**30), and the track of the last window (its kind, reference, axis, step)."""
+    |q| < 2**30), and what the payload stores of it besides (kind, reference, axis, step)."""
 
-    track: Track
+    node: int
+    kind: int
+    ref_codes: np.ndarray
+    axis_codes: np.ndarray | None
+    step: np.ndarray
     frames: list[np.ndarray]
     q: list[np.ndarray]
+
+    @classmethod
+    def of(cls, t: Track) -> "_Joined":
+        return cls(t.node, t.kind, t.ref_codes, t.axis_codes, np.array(t.quantizer.step), [], [])
+
+    def refine(self, step: np.ndarray) -> bool:
+        """Put the keys so far on the lattice of a finer ``step`` a power of two times finer
+        (a step halved, :func:`mocodec.keyframes.fit_track`: exactly half in binary32): the
+        integers doubled, the values the same. False, nothing changed, when it is not that."""
+        ratio = self.step / step
+        factor = int(ratio[0]) if np.all(ratio == ratio[0]) and ratio[0] >= 1 else 0
+        if factor < 1 or factor & (factor - 1) or np.any(self.step != step * factor):
+            return False
+        if factor > 1:
+            if any(len(q) and np.abs(q).max() * factor > StepQuantizer.MAX_Q for q in self.q):
+                raise ToleranceNotMet(f"node {self.node}: a finer step puts its keys past 2**30 steps")
+            self.q = [q * np.int32(factor) for q in self.q]
+            self.step = np.array(step)
+        return True
 
     def curve(self, split: bool) -> CurveTrack:
         """The keys as the payload stores them (the lists let go)."""
@@ -233,11 +264,9 @@ class _Joined:
         self.frames = []
         q = np.concatenate(self.q).astype(np.int64)
         self.q = []
-        t = self.track
-        step = t.quantizer.step
-        return CurveTrack(kind=t.kind, frames=frames, q=q, step=float(step[-1]),
-                          angle_step=float(step[0]) if t.kind == KIND_TWIST else 0.0,
-                          ref_codes=t.ref_codes, axis_codes=t.axis_codes, split=split)
+        return CurveTrack(kind=self.kind, frames=frames, q=q, step=float(self.step[-1]),
+                          angle_step=float(self.step[0]) if self.kind == KIND_TWIST else 0.0,
+                          ref_codes=self.ref_codes, axis_codes=self.axis_codes, split=split)
 
 
 def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck,
@@ -260,16 +289,51 @@ def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, chec
     return best
 
 
+REST_SHARE = 0.5
+"""A track whose original stays within this share of its budget of its rest value on every
+frame is left at rest for the whole clip (:func:`near_rest`)."""
+
+
+def near_rest(motion: Motion, plan: ClipPlan, budgets: np.ndarray, share: float = REST_SHARE) -> np.ndarray:
+    """Per track of ``plan`` (T,) bool: stored, yet its original rotation, translation or
+    scale stays within ``share`` of its budget (``budgets`` (T,), radians or file units) of the
+    node's rest on every frame, a run of frames at a time. The whole fit folds such a track to
+    its rest value when its target stays within its budget; a window cannot, since every window
+    must store the same tracks, so the clip decides it once, from the original, with room left
+    for compensation (the runtime check still holds every window to the tolerance)."""
+    sk = motion.skeleton
+    near = np.zeros(len(plan.track_nodes), dtype=bool)
+    for k, (i, part, stored) in enumerate(zip(plan.track_nodes, plan.track_parts, plan.stored)):
+        if not stored:
+            continue
+        values = (motion.rotations, motion.translations, motion.scales)[part]
+        rest = f32_exact((sk.rest_rotations, sk.offsets, sk.rest_scales)[part][i])
+        worst = 0.0
+        for rows in frame_runs(motion.frame_count):
+            v = np.asarray(values[rows, i], dtype=np.float64)
+            off = (R.quat_angle(v, np.broadcast_to(rest, v.shape)) if part == ROT
+                   else np.linalg.norm(v - rest, axis=1))
+            worst = max(worst, float(off.max()))
+            if not worst <= share * budgets[k]:
+                break
+        near[k] = worst <= share * budgets[k]
+    return near
+
+
 def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
                   params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
                   scale: float) -> ClipResult:
+    tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+    at_rest = near_rest(motion, plan, initial_budgets(plan.reach, tol, scale))
+    plan = replace(plan, stored=plan.stored & ~at_rest)
     quant_scales: dict[tuple[int, int], float] = {}
     for rounds in range(1, MAX_ROUNDS + 1):
-        halved = False
+        again = False
         joined: dict[tuple[int, int], _Joined] = {}
         frozen: dict[tuple[int, int], np.ndarray] = {}
         stats: dict[str, Any] = {"keys": 0, "tracks": 0, "repairs": 0, "budget_scale": scale,
-                                 "windows": len(bounds), "window_rounds": rounds}
+                                 "windows": len(bounds), "window_rounds": rounds, "steps_halved": 0,
+                                 "at_rest": int(at_rest.sum())}
         for k, (start, stop) in enumerate(bounds):
             part = motion.slice(start, stop)
             first, last = k == 0, k == len(bounds) - 1
@@ -284,48 +348,48 @@ def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, che
                     stats[name] = stats.get(name, 0) + result.stats[name]
             frozen = {}
             for key, t in fitter.tracks.items():
+                step = t.quantizer.step
                 if t.quant_scale < quant_scales.get(key, 1.0):
-                    quant_scales[key] = t.quant_scale  # finer from here on, and from the start next round
-                    halved = True
+                    quant_scales[key] = t.quant_scale  # finer from here on
+                    stats["steps_halved"] += 1
                 keys = np.asarray(t.keys, dtype=np.int64) + start
                 q = t.quantizer.encode(t.key_values)
-                drop = 0 if first else SEAM  # the frozen keys, the window before's
                 j = joined.get(key)
                 if j is None:
-                    j = joined[key] = _Joined(t, [], [])
-                elif not halved:
-                    _same_keys(j, t, keys, q)
-                j.track = t
+                    j = joined[key] = _Joined.of(t)
+                elif not j.refine(step):  # (not a power of two finer: the clip is fitted again with it)
+                    again = True
+                elif not again:
+                    _same_keys(j, keys, q)
+                drop = 0 if first else SEAM  # the frozen keys, the window before's
                 j.frames.append(keys[drop:].astype(np.int32))
                 j.q.append(q[drop:].astype(np.int32))
-                if not last:
-                    frozen[key] = np.asarray(t.key_values, dtype=np.float64)[-SEAM:]
+                if not last:  # the values the keys decode from, exactly (q x step, on any finer lattice too)
+                    frozen[key] = q[-SEAM:].astype(np.float64) * step
             del fitter, part, own
-        if not halved:
+        if not again:
             break
     else:
-        raise ToleranceNotMet(f"quantization steps still halving after {MAX_ROUNDS} fits of the clip in windows")
-    tracks = [Track(t.node, t.kind, np.zeros((0, 3)), np.zeros((0, 4)), t.ref, t.axis, keys=np.zeros(0))
-              for t in (j.track for j in joined.values())]
+        raise ToleranceNotMet(f"quantization steps still changing after {MAX_ROUNDS} fits of the clip in windows")
+    tracks = [Track(j.node, j.kind, np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(4), np.zeros(3), keys=np.zeros(0))
+              for j in joined.values()]
     stats["keys"] = sum(sum(len(f) for f in j.frames) for j in joined.values())
     stats["tracks"] = len(tracks)
     curves = {id(t): j for t, j in zip(tracks, joined.values())}
     payload = serialize(motion, tracks, settings.block_keys, curve=lambda t: curves[id(t)].curve(split))
     del tracks, curves, joined
-    # The windows' checks covered every frame; the joined payload is checked once more whole
-    # (a seam that did not join as it should is a bug, not a miss to repair).
-    tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+    # The windows' checks covered every frame; the joined payload is checked once more whole.
+    # A miss here is a seam that did not join, a bug, not a miss a repair or another budget
+    # scale should hide.
     errors = check(payload, over=tol) if getattr(check, "over_rows", False) else OverRows.of(check(payload), tol)
     if not within(errors, tol):
-        raise ToleranceNotMet(f"the clip joined from {len(bounds)} windows is over the tolerance on "
-                              f"{len(errors.rows)} frames (a bug in the windowed fit)")
+        raise AssertionError(f"clip {motion.name!r} joined from {len(bounds)} windows is over the tolerance on "
+                             f"{len(errors.rows)} frames (a bug in the windowed fit)")
     return ClipResult(payload, errors, stats)
 
 
-def _same_keys(joined: _Joined, t: Track, keys: np.ndarray, q: np.ndarray) -> None:
+def _same_keys(joined: _Joined, keys: np.ndarray, q: np.ndarray) -> None:
     """A window's frozen keys (clip frames ``keys``, integers ``q``) are the window before's
     last ones, on the same lattice."""
-    if not (np.array_equal(keys[:SEAM], joined.frames[-1][-SEAM:])
-            and np.array_equal(joined.track.quantizer.step, t.quantizer.step)
-            and np.array_equal(q[:SEAM], joined.q[-1][-SEAM:])):
-        raise AssertionError(f"node {t.node}: the keys at the seam at frame {keys[1]} do not join")
+    if not (np.array_equal(keys[:SEAM], joined.frames[-1][-SEAM:]) and np.array_equal(q[:SEAM], joined.q[-1][-SEAM:])):
+        raise AssertionError(f"node {joined.node}: the keys at the seam at frame {keys[1]} do not join")
