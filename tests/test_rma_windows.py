@@ -18,7 +18,7 @@ from mocodec.io import read_bvh
 from mocodec.keyframes import KIND_TWIST, fit_clip
 from mocodec.motion import Motion, Skeleton
 from mocodec.runtime import Asset
-from mocodec.tolerance import Tolerance
+from mocodec.tolerance import Tolerance, ToleranceNotMet
 from mocodec.units import resolve_units
 
 
@@ -227,3 +227,83 @@ def test_tracks_that_barely_leave_rest_stay_at_rest_in_every_window(repo_root):
     asset = _single_clip_asset(m, units.cm_per_unit, "rma", result.payload, section_prefix(1))
     (report,) = evaluate(asset, [m], [units])
     assert report.max_cm <= 1.0 + 1e-9
+
+
+def _curled_finger(curl_share: float) -> Motion:
+    """A root that moves and turns, and a chain of five short joints each curled by
+    ``curl_share`` of its rotation budget (and a wiggle far smaller): every joint is near its
+    rest alone, but the curls add up along the chain, and a joint left at rest compensates
+    nothing below it."""
+    from mocodec.clip_plan import plan_clip
+    from mocodec.tolerance import initial_budgets
+
+    n = 6
+    sk = Skeleton(["Hips"] + [f"J{i}" for i in range(1, n)] + ["End"], [-1] + list(range(n)),
+                  [[0, 90, 0]] + [[0, 3, 0]] * n, [(0, 1, 2, 5, 3, 4)] + [(5, 3, 4)] * (n - 1) + [()],
+                  [False] * n + [True])
+    frames = 400
+    f = np.arange(frames, dtype=np.float64)
+    rot = np.tile([0.0, 0.0, 0.0, 1.0], (frames, n + 1, 1))
+    trans = np.broadcast_to(sk.offsets, (frames, n + 1, 3)).copy()
+    trans[:, 0, 0] = 50.0 * np.sin(2 * np.pi * f / 200)
+    rot[:, 0] = R.quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), 0.5 * np.sin(2 * np.pi * f / 150))
+    units = resolve_units(sk, "cmu")
+    settings = RMASettings(Tolerance(1.0))
+    plan = plan_clip(Motion(sk, rot, trans, 1 / 120, "finger"), units.cm_per_unit, settings.shell_cm)
+    budgets = initial_budgets(plan.reach, settings.tolerance.per_node_cm(sk) / units.cm_per_unit,
+                              settings.budget_scales[0])
+    for k, i in enumerate(plan.track_nodes):
+        if i >= 1:
+            angle = curl_share * budgets[k] * (1.0 + 0.001 * np.sin(f / 7))
+            rot[:, i] = R.quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), angle)
+    return Motion(sk, rot, trans, 1 / 120, "finger")
+
+
+@pytest.mark.parametrize("curl_share", [0.1, 0.3, 0.45])
+def test_joints_near_rest_that_add_up_along_a_chain_are_keyed(curl_share):
+    """Each curl is within half its budget of rest, yet left at rest together they move the end
+    past the tolerance: the clip checks that in world space before leaving any at rest (the
+    first rule, per track alone, left the windows unable to meet the tolerance)."""
+    from mocodec.codecs.rma_windows import near_rest, rest_tracks
+    from mocodec.clip_plan import plan_clip
+    from mocodec.tolerance import initial_budgets
+
+    m = _curled_finger(curl_share)
+    units = resolve_units(m.skeleton, "cmu")
+    settings = RMASettings(Tolerance(1.0))
+    plan = plan_clip(m, units.cm_per_unit, settings.shell_cm)
+    tol = settings.tolerance.per_node_cm(m.skeleton) / units.cm_per_unit
+    budgets = initial_budgets(plan.reach, tol, settings.budget_scales[0])
+    assert near_rest(m, plan, budgets).sum() == 5
+    assert rest_tracks(m, plan, tol, budgets).sum() < 5
+    result, cm = _fit(m, 1.0, 64)
+    _, report = _errors(m, cm, result.payload)
+    assert report.max_cm <= 1.0 + 1e-9
+
+
+def test_a_window_that_cannot_meet_the_tolerance_with_tracks_at_rest_has_them_fitted(sample_paths, monkeypatch):
+    """Should tracks left at rest keep a window from the tolerance, the clip is fitted again
+    with every track keyed."""
+    from mocodec.clip_plan import ROT
+
+    m = read_bvh(sample_paths[0])
+    rest = rma_windows.rest_tracks
+
+    def root_at_rest(motion, plan, tol, budgets):  # the root's rotation: far from rest
+        out = rest(motion, plan, tol, budgets)
+        out[[k for k, (i, p) in enumerate(zip(plan.track_nodes, plan.track_parts)) if i == 0 and p == ROT]] = True
+        return out
+    monkeypatch.setattr(rma_windows, "rest_tracks", root_at_rest)
+    result, cm = _fit(m, 1.0, 128)
+    assert result.stats["at_rest"] == 0
+    _, report = _errors(m, cm, result.payload)
+    assert report.max_cm <= 1.0 + 1e-9
+
+
+def test_keys_put_on_a_finer_lattice_past_two_to_the_thirty_steps_are_refused():
+    j = rma_windows._Joined(0, 3, np.zeros(3, np.int16), None, np.full(3, 4.0),
+                            [np.array([0, 5], np.int32)], [np.array([[1, 2, 3], [(1 << 29) + 1, 0, 0]], np.int32)])
+    with pytest.raises(ToleranceNotMet, match="past 2\\*\\*30"):
+        j.refine(np.full(3, 1.0))  # four times finer: 2**31 + 4 would wrap in int32
+    assert j.refine(np.full(3, 4.0)) and j.q[0][1, 0] == (1 << 29) + 1  # the same step: nothing changes
+    assert not j.refine(np.full(3, 3.0))  # not a power of two finer

@@ -25,7 +25,7 @@ before, and the keys of the windows before are doubled onto it when they are joi
 values, nothing fitted again. (A step that were not a power of two finer would have the clip
 fitted again from the first window with it, at most :data:`MAX_ROUNDS` times.) A track whose
 original stays near its rest on every frame is left at rest for the whole clip
-(:func:`near_rest`): windows fold no track, so that each stores the same ones.
+(:func:`rest_tracks`): windows fold no track, so that each stores the same ones.
 """
 from __future__ import annotations
 
@@ -39,6 +39,7 @@ from .. import rotations as R
 from ..clip_plan import ROT, ClipPlan, plan_clip
 from ..encode import OneClipCheck, RuntimeCheck
 from ..keyframes import KIND_TWIST, Track, _retarget_kept, _rotation_track_from, smallest_fit
+from ..kinematics import forward_kinematics
 from ..motion import Motion, frame_runs
 from ..quantize import StepQuantizer, f32_exact
 from ..tolerance import ClipCheck, OverRows, ToleranceNotMet, initial_budgets, within
@@ -252,7 +253,7 @@ class _Joined:
         if factor < 1 or factor & (factor - 1) or np.any(self.step != step * factor):
             return False
         if factor > 1:
-            if any(len(q) and np.abs(q).max() * factor > StepQuantizer.MAX_Q for q in self.q):
+            if any(len(q) and int(np.abs(q).max()) * factor > StepQuantizer.MAX_Q for q in self.q):
                 raise ToleranceNotMet(f"node {self.node}: a finer step puts its keys past 2**30 steps")
             self.q = [q * np.int32(factor) for q in self.q]
             self.step = np.array(step)
@@ -291,16 +292,16 @@ def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, chec
 
 REST_SHARE = 0.5
 """A track whose original stays within this share of its budget of its rest value on every
-frame is left at rest for the whole clip (:func:`near_rest`)."""
+frame may be left at rest for the whole clip (:func:`rest_tracks`)."""
+
+REST_TOLERANCE_SHARE = 0.25
+"""... when the tracks left at rest move no point further than this share of its tolerance."""
 
 
 def near_rest(motion: Motion, plan: ClipPlan, budgets: np.ndarray, share: float = REST_SHARE) -> np.ndarray:
     """Per track of ``plan`` (T,) bool: stored, yet its original rotation, translation or
     scale stays within ``share`` of its budget (``budgets`` (T,), radians or file units) of the
-    node's rest on every frame, a run of frames at a time. The whole fit folds such a track to
-    its rest value when its target stays within its budget; a window cannot, since every window
-    must store the same tracks, so the clip decides it once, from the original, with room left
-    for compensation (the runtime check still holds every window to the tolerance)."""
+    node's rest on every frame, a run of frames at a time."""
     sk = motion.skeleton
     near = np.zeros(len(plan.track_nodes), dtype=bool)
     for k, (i, part, stored) in enumerate(zip(plan.track_nodes, plan.track_parts, plan.stored)):
@@ -320,20 +321,64 @@ def near_rest(motion: Motion, plan: ClipPlan, budgets: np.ndarray, share: float 
     return near
 
 
+def rest_tracks(motion: Motion, plan: ClipPlan, tol_units: np.ndarray, budgets: np.ndarray) -> np.ndarray:
+    """The tracks of ``plan`` (T,) bool left at rest for the whole clip: those
+    :func:`near_rest`, less any on the chain of a point that, with them all at rest and every
+    other track as captured, moves further than :data:`REST_TOLERANCE_SHARE` of its tolerance
+    ``tol_units`` (N,) on some frame (forward kinematics a run of frames at a time; a point
+    below several such tracks, or far below one, adds up what compensation would not undo).
+    The whole fit folds a track to its rest value when its target stays within its budget; a
+    window cannot, since every window must store the same tracks, so the clip decides it once."""
+    rest = near_rest(motion, plan, budgets)
+    sk = motion.skeleton
+    parts = np.asarray(plan.track_parts)
+    nodes = np.asarray(plan.track_nodes)
+    while rest.any():
+        worst = np.zeros(sk.node_count)
+        for rows in frame_runs(motion.frame_count):
+            local = [np.array(a[rows], dtype=np.float64) for a in (motion.rotations, motion.translations, motion.scales)]
+            _, original = forward_kinematics(sk, *local)
+            for part, values, at_rest in zip((ROT, 1, 2), local, (sk.rest_rotations, sk.offsets, sk.rest_scales)):
+                for i in nodes[rest & (parts == part)]:
+                    values[:, i] = f32_exact(at_rest[i])
+            _, moved = forward_kinematics(sk, *local)
+            worst = np.maximum(worst, np.linalg.norm(moved - original, axis=-1).max(axis=0))
+        over = ~(worst <= REST_TOLERANCE_SHARE * tol_units)
+        if not over.any():
+            break
+        rest &= ~plan.reach.affects[:, over].any(axis=1)
+    return rest
+
+
 def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
                   params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
                   scale: float) -> ClipResult:
+    """The clip in windows at budget ``scale``, tracks near rest left there; should a window
+    not meet the tolerance so, the clip again with every track fitted (the whole fit would
+    have given them keys back)."""
     tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
-    at_rest = near_rest(motion, plan, initial_budgets(plan.reach, tol, scale))
+    at_rest = rest_tracks(motion, plan, tol, initial_budgets(plan.reach, tol, scale))
+    if at_rest.any():
+        try:
+            return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, at_rest)
+        except ToleranceNotMet:
+            at_rest = np.zeros_like(at_rest)
+    return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, at_rest)
+
+
+def _fit_rounds(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
+                params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
+                scale: float, at_rest: np.ndarray) -> ClipResult:
+    tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
     plan = replace(plan, stored=plan.stored & ~at_rest)
     quant_scales: dict[tuple[int, int], float] = {}
+    halvings = 0
     for rounds in range(1, MAX_ROUNDS + 1):
         again = False
         joined: dict[tuple[int, int], _Joined] = {}
         frozen: dict[tuple[int, int], np.ndarray] = {}
         stats: dict[str, Any] = {"keys": 0, "tracks": 0, "repairs": 0, "budget_scale": scale,
-                                 "windows": len(bounds), "window_rounds": rounds, "steps_halved": 0,
-                                 "at_rest": int(at_rest.sum())}
+                                 "windows": len(bounds), "window_rounds": rounds, "at_rest": int(at_rest.sum())}
         for k, (start, stop) in enumerate(bounds):
             part = motion.slice(start, stop)
             first, last = k == 0, k == len(bounds) - 1
@@ -351,7 +396,7 @@ def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, che
                 step = t.quantizer.step
                 if t.quant_scale < quant_scales.get(key, 1.0):
                     quant_scales[key] = t.quant_scale  # finer from here on
-                    stats["steps_halved"] += 1
+                    halvings += 1
                 keys = np.asarray(t.keys, dtype=np.int64) + start
                 q = t.quantizer.encode(t.key_values)
                 j = joined.get(key)
@@ -373,6 +418,7 @@ def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, che
         raise ToleranceNotMet(f"quantization steps still changing after {MAX_ROUNDS} fits of the clip in windows")
     tracks = [Track(j.node, j.kind, np.zeros((0, 3)), np.zeros((0, 4)), np.zeros(4), np.zeros(3), keys=np.zeros(0))
               for j in joined.values()]
+    stats["steps_halved"] = halvings
     stats["keys"] = sum(sum(len(f) for f in j.frames) for j in joined.values())
     stats["tracks"] = len(tracks)
     curves = {id(t): j for t, j in zip(tracks, joined.values())}
