@@ -167,18 +167,18 @@ class WindowFitter(RMAFitter):
     def __init__(self, motion: Motion, cm_per_unit: float, settings: RMASettings, plan: ClipPlan, *,
                  start: int, params: dict[int, RotationParameters], frozen: dict[tuple[int, int], np.ndarray],
                  seam_after: bool, split: bool, quant_scales: dict[tuple[int, int], float]) -> None:
-        super().__init__(motion, cm_per_unit, settings, plan)
         self.start, self.params, self.frozen = start, params, frozen
         self.seam_after, self.quant_scales = seam_after, quant_scales
-        self.split = split
+        super().__init__(motion, cm_per_unit, settings, plan)
+        self.split = split  # the clip's (RMAFitter looked at the window's own first frames)
         self.mandatory = self.mandatory_keys()
 
     def mandatory_keys(self) -> np.ndarray:
         f = self.frames
         keys = [0, f - 1] + ([1] if self.split else [])
-        if getattr(self, "frozen", None):
+        if self.frozen:
             keys += list(range(SEAM))
-        if getattr(self, "seam_after", False):
+        if self.seam_after:
             keys += list(range(f - SEAM, f))
         return np.unique(keys)
 
@@ -360,16 +360,15 @@ def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, che
     at_rest = rest_tracks(motion, plan, tol, initial_budgets(plan.reach, tol, scale))
     if at_rest.any():
         try:
-            return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, at_rest)
+            return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest)
         except ToleranceNotMet:
             at_rest = np.zeros_like(at_rest)
-    return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, at_rest)
+    return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest)
 
 
 def _fit_rounds(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
                 params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
-                scale: float, at_rest: np.ndarray) -> ClipResult:
-    tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
+                scale: float, tol: np.ndarray, at_rest: np.ndarray) -> ClipResult:
     plan = replace(plan, stored=plan.stored & ~at_rest)
     quant_scales: dict[tuple[int, int], float] = {}
     halvings = 0
