@@ -204,6 +204,48 @@ def test_a_long_clip_is_fitted_in_windows_through_encode_and_a_short_one_whole(s
     assert long.max_error_cm <= 1.0
 
 
+def test_a_long_clip_encoded_in_this_process_shows_its_windows_as_it_goes(sample_paths, monkeypatch):
+    import io
+
+    import mocodec.kinematics
+    from mocodec.bake import make_runner
+    from mocodec.bake.progress import Progress, report_within
+
+    m = read_bvh(sample_paths[1])
+    units = [resolve_units(m.skeleton, "cmu")]
+    monkeypatch.setattr(mocodec.kinematics, "SHORT_CLIP_BYTES", -1)
+    stream = io.StringIO()
+    progress = Progress(1, stream=stream, bar=False, within_every=0.0)  # one clip: no count, but its windows
+    with make_runner(1) as runner:
+        out = encode_motions([m], units, "rma", Tolerance(1.0), {"window_frames": 100, "budget_scales": (1.0, 0.75)},
+                             progress=progress, runner=runner)
+    n = out.clips[0].stats["windows"]
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith(f"  {m.name}: window 1 of {n}, budget 1 of 2 (")
+    assert any(f"window {n} of {n}, budget 2 of 2" in line for line in lines)
+    assert len(lines) >= 2 * n  # every window of both budgets (nothing throttled at 0 s)
+    quiet = io.StringIO()
+    progress = Progress(1, enabled=False, stream=quiet, bar=False, within_every=0.0)
+    with make_runner(1) as runner:
+        encode_motions([m], units, "rma", Tolerance(1.0), {"window_frames": 100}, progress=progress, runner=runner)
+    assert quiet.getvalue() == ""
+    report_within("nobody watching")  # outside a clip: nothing, no error
+
+
+def test_progress_within_a_clip_waits_its_interval():
+    import io
+
+    from mocodec.bake.progress import Progress
+
+    stream = io.StringIO()
+    p = Progress(1, stream=stream, bar=False, within_every=3600.0)
+    p.within("walk", "window 1 of 9")
+    assert stream.getvalue() == ""  # not an hour since the start
+    p.within_every = 0.0
+    p.within("walk", "window 2 of 9")
+    assert stream.getvalue().startswith("  walk: window 2 of 9 (")
+
+
 @pytest.mark.parametrize("value", [15, 0, -4])
 def test_window_frames_below_sixteen_is_refused(value):
     with pytest.raises(ValueError, match="window_frames must be at least 16"):

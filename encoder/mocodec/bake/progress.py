@@ -4,26 +4,60 @@ clip each worker is on; a line per clip where stderr is not a terminal (logs sta
 A :class:`Progress` is the ``progress`` of :meth:`~.runners.Runner.run`: called with a clip's
 name when it is done, told by ``started(name)`` when a worker takes one and by ``hit(name)``
 when one comes from the cache.
+
+Within a clip: a codec's long work calls :func:`report_within` (the windows of a long capture),
+and a clip encoded in this process (one clip, or ``--jobs 1``) shows where it has got to, a
+line every ``within_every`` seconds, so a two-hour capture is not silent for minutes. Clips in
+worker processes show only when done.
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import sys
 import time
-from typing import IO
+from typing import IO, Any, Callable, Iterator
 
 from ..limits import printable
+
+_WITHIN: contextvars.ContextVar[Callable[[str], None] | None] = contextvars.ContextVar("mocodec_within",
+                                                                                      default=None)
+
+
+def report_within(status: str) -> None:
+    """Where the clip being encoded in this process has got to (``status``, e.g. "window 12 of
+    211"); shown by the :class:`Progress` watching it, if any, else nothing."""
+    show = _WITHIN.get()
+    if show is not None:
+        show(status)
+
+
+@contextlib.contextmanager
+def within_clip(progress: Any, name: str) -> Iterator[None]:
+    """Around the encoding of clip ``name`` in this process: its :func:`report_within` calls go
+    to ``progress.within(name, status)`` when ``progress`` has that method."""
+    method = getattr(progress, "within", None)
+    token = _WITHIN.set(None if method is None else (lambda status: method(name, status)))
+    try:
+        yield
+    finally:
+        _WITHIN.reset(token)
 
 
 class Progress:
     """Progress of ``total`` steps on ``stream`` (stderr); ``enabled=False`` (``--quiet``,
-    ``--json``) shows nothing. Fewer than two steps show nothing either."""
+    ``--json``) shows nothing. Fewer than two steps show no count, but still where a long clip
+    has got to (:meth:`within`), at most every ``within_every`` seconds."""
 
     def __init__(self, total: int, enabled: bool = True, stream: IO[str] | None = None,
-                 bar: bool | None = None) -> None:
+                 bar: bool | None = None, within_every: float = 10.0) -> None:
         self.total, self.done, self.hits = total, 0, 0
         self.stream = stream if stream is not None else sys.stderr
+        self.watching = enabled
         self.enabled = enabled and total >= 2
         self.started_at = time.perf_counter()
+        self.within_every = within_every
+        self._within_at = self.started_at
         self.slots: dict[int, str] = {}  # worker slot -> the clip it is on
         self._bar = None
         if self.enabled and (bar if bar is not None else self.stream.isatty()):
@@ -57,6 +91,18 @@ class Progress:
         elif self.enabled:
             print(f"  [{self.done}/{self.total}] {printable(name)} ({time.perf_counter() - self.started_at:.1f}s)",
                   file=self.stream, flush=True)
+
+    def within(self, name: str, status: str) -> None:
+        """Clip ``name``, encoded in this process, has got to ``status``: on the bar, or a line,
+        when ``within_every`` seconds have passed since the last (or since the start)."""
+        now = time.perf_counter()
+        if not self.watching or now - self._within_at < self.within_every:
+            return
+        self._within_at = now
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"{printable(name)}: {status}", refresh=True)
+        else:
+            print(f"  {printable(name)}: {status} ({now - self.started_at:.1f}s)", file=self.stream, flush=True)
 
     def postfix(self) -> str:
         """The bar's tail: each worker's clip, and the cache hits so far."""

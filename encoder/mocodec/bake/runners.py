@@ -31,6 +31,7 @@ from ..motion import Motion
 from .cache import ClipCache, job_key
 from .fingerprint import encoder_fingerprint
 from .library import ClipRef
+from .progress import within_clip
 from .spool import PayloadSpool
 
 ProgressFn = Callable[[str], None]
@@ -182,7 +183,9 @@ class Runner:
         """(position, outcome) of every job of ``to_encode`` as it finishes."""
         for i, job in to_encode:
             _report(progress, "started", job.name)
-            yield i, run_job(job)
+            with within_clip(progress, job.name):
+                outcome = run_job(job)
+            yield i, outcome
 
     def close(self) -> None:
         """Stop the workers this runner started."""

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from .. import rotations as R
+from ..bake.progress import report_within
 from ..clip_plan import ROT, ClipPlan, plan_clip
 from ..encode import OneClipCheck, RuntimeCheck
 from ..keyframes import KIND_TWIST, Track, _retarget_kept, _rotation_track_from, smallest_fit
@@ -284,8 +285,10 @@ def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, chec
     params = rotation_parameters(motion, plan)
     bounds = window_bounds(motion.frame_count, window, settings.key_grid)
     split = frame0_jumps(motion, cm_per_unit)
-    best = smallest_fit(motion.name, settings.budget_scales, lambda scale: _fit_at_scale(
-        motion, cm_per_unit, settings, check, plan, params, bounds, split, scale))
+    scales = settings.budget_scales
+    best = smallest_fit(motion.name, scales, lambda scale: _fit_at_scale(
+        motion, cm_per_unit, settings, check, plan, params, bounds, split, scale,
+        f", budget {scales.index(scale) + 1} of {len(scales)}" if len(scales) > 1 else ""))
     best.seconds = time.perf_counter() - started
     return best
 
@@ -352,23 +355,25 @@ def rest_tracks(motion: Motion, plan: ClipPlan, tol_units: np.ndarray, budgets: 
 
 def _fit_at_scale(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
                   params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
-                  scale: float) -> ClipResult:
+                  scale: float, stage: str = "") -> ClipResult:
     """The clip in windows at budget ``scale``, tracks near rest left there; should a window
     not meet the tolerance so, the clip again with every track fitted (the whole fit would
-    have given them keys back)."""
+    have given them keys back). ``stage`` ends each window's progress report."""
     tol = settings.tolerance.per_node_cm(motion.skeleton) / cm_per_unit
     at_rest = rest_tracks(motion, plan, tol, initial_budgets(plan.reach, tol, scale))
     if at_rest.any():
         try:
-            return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest)
+            return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest,
+                               stage)
         except ToleranceNotMet:
             at_rest = np.zeros_like(at_rest)
-    return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest)
+            stage += ", every track keyed"
+    return _fit_rounds(motion, cm_per_unit, settings, check, plan, params, bounds, split, scale, tol, at_rest, stage)
 
 
 def _fit_rounds(motion: Motion, cm_per_unit: float, settings: RMASettings, check: ClipCheck, plan: ClipPlan,
                 params: dict[int, RotationParameters], bounds: list[tuple[int, int]], split: bool,
-                scale: float, tol: np.ndarray, at_rest: np.ndarray) -> ClipResult:
+                scale: float, tol: np.ndarray, at_rest: np.ndarray, stage: str = "") -> ClipResult:
     plan = replace(plan, stored=plan.stored & ~at_rest)
     quant_scales: dict[tuple[int, int], float] = {}
     halvings = 0
@@ -411,6 +416,7 @@ def _fit_rounds(motion: Motion, cm_per_unit: float, settings: RMASettings, check
                 if not last:  # the values the keys decode from, exactly (q x step, on any finer lattice too)
                     frozen[key] = q[-SEAM:].astype(np.float64) * step
             del fitter, part, own
+            report_within(f"window {k + 1} of {len(bounds)}{stage}" + (f", fit {rounds}" if rounds > 1 else ""))
         if not again:
             break
     else:
