@@ -221,7 +221,7 @@ def test_a_long_clip_encoded_in_this_process_shows_its_windows_as_it_goes(sample
                              progress=progress, runner=runner)
     n = out.clips[0].stats["windows"]
     lines = stream.getvalue().splitlines()
-    assert lines[0].startswith(f"  {m.name}: window 1 of {n}, budget 1 of 2 (")
+    assert lines[0].startswith(f"  {m.name}: window 1 of {n}, budget 1 of 2")  # (", fit 2" if a step halved)
     assert any(f"window {n} of {n}, budget 2 of 2" in line for line in lines)
     assert len(lines) >= 2 * n  # every window of both budgets (nothing throttled at 0 s)
     quiet = io.StringIO()
@@ -244,6 +244,21 @@ def test_progress_within_a_clip_waits_its_interval():
     p.within_every = 0.0
     p.within("walk", "window 2 of 9")
     assert stream.getvalue().startswith("  walk: window 2 of 9 (")
+
+
+def test_the_bar_shows_a_clips_windows_after_the_workers_clips():
+    import io
+
+    from mocodec.bake.progress import Progress
+
+    stream = io.StringIO()
+    p = Progress(2, stream=stream, bar=True, within_every=0.0)
+    p.started("walk")
+    p.hit("idle")
+    p.within("walk", "window 3 of 9")
+    assert p._bar is not None and "w1 walk  (1 cached)  walk: window 3 of 9" in stream.getvalue()
+    p("walk")
+    assert p._bar is None
 
 
 @pytest.mark.parametrize("value", [15, 0, -4])

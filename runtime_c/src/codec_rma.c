@@ -4,8 +4,8 @@
  *
  * A track's keys come in blocks of 2^b. A block's row, at a fixed bit stride, holds its first
  * key whole (frame and lattice integers), where its codes start and their Rice parameters;
- * every later key is its frame gap and its differences from the key before, Rice coded (one
- * 64-bit load and a count of trailing zeros a code). Version 4 adds, per block and stream, a
+ * every later key is its frame gap and its differences from the key before, Rice coded (a
+ * count of trailing zeros a code, the codes of a key from one 64-bit load). Version 4 adds, per block and stream, a
  * stream of zeros with no codes and, per component, a slope predictor (the difference before
  * plus the code). A random access searches the rows by frame and decodes on from its block's
  * first key to the keys around x; playback keeps a reader per track and decodes one key per
@@ -175,10 +175,13 @@ static MCD_HOT_INLINE void load_row(const uint8_t* p, const track_layout* t, uin
 /* A key's codes read from one 64-bit load: `w` holds the bits from `bit` on, `avail` of them
  * loaded. Decoding a code then shifts a register instead of loading at the bit position the
  * code before computed (a load and a shift off the chain of every code: a random access's
- * walk through a block is that chain, and took 20 % less time). Values are rice()'s; a code
- * the register does not hold whole, or an escape, is read by rice() itself. Every load is at
- * the start of a code or of a track's data end, as rice()'s are, so it reads no byte rice()
- * could not. */
+ * walk through a block is that chain, and took 18-23 % less time). Values are rice()'s; a code
+ * the register does not hold whole, or an escape, is read by rice() itself. A load is at the
+ * start of a code or at the end of a track's codes (a reload after its last code, a block of
+ * one key, a version 4 key with no codes), one byte further than rice() reads: validation
+ * (check_track, each block's codes starting where the one before ended, and
+ * mcd_rmal_validate_payload's 8 bytes after the track data) keeps every such load inside the
+ * payload. */
 typedef struct bits {
     uint64_t w;
     uint32_t bit, avail;

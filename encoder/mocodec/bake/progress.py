@@ -47,7 +47,8 @@ def within_clip(progress: Any, name: str) -> Iterator[None]:
 class Progress:
     """Progress of ``total`` steps on ``stream`` (stderr); ``enabled=False`` (``--quiet``,
     ``--json``) shows nothing. Fewer than two steps show no count, but still where a long clip
-    has got to (:meth:`within`), at most every ``within_every`` seconds."""
+    has got to (:meth:`within`): a report at least ``within_every`` seconds after the last one
+    shown (or the start)."""
 
     def __init__(self, total: int, enabled: bool = True, stream: IO[str] | None = None,
                  bar: bool | None = None, within_every: float = 10.0) -> None:
@@ -93,14 +94,15 @@ class Progress:
                   file=self.stream, flush=True)
 
     def within(self, name: str, status: str) -> None:
-        """Clip ``name``, encoded in this process, has got to ``status``: on the bar, or a line,
-        when ``within_every`` seconds have passed since the last (or since the start)."""
+        """Clip ``name``, encoded in this process, has got to ``status``: on the bar (after the
+        workers' clips), or a line, when ``within_every`` seconds have passed since the last
+        one shown (or since the start)."""
         now = time.perf_counter()
         if not self.watching or now - self._within_at < self.within_every:
             return
         self._within_at = now
         if self._bar is not None:
-            self._bar.set_postfix_str(f"{printable(name)}: {status}", refresh=True)
+            self._bar.set_postfix_str(f"{self.postfix()}  {printable(name)}: {status}".strip(), refresh=True)
         else:
             print(f"  {printable(name)}: {status} ({now - self.started_at:.1f}s)", file=self.stream, flush=True)
 

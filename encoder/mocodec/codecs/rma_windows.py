@@ -286,9 +286,10 @@ def fit_windowed(motion: Motion, cm_per_unit: float, settings: RMASettings, chec
     bounds = window_bounds(motion.frame_count, window, settings.key_grid)
     split = frame0_jumps(motion, cm_per_unit)
     scales = settings.budget_scales
+    tried = iter(range(1, len(scales) + 1))  # smallest_fit fits the scales in order, once each
     best = smallest_fit(motion.name, scales, lambda scale: _fit_at_scale(
         motion, cm_per_unit, settings, check, plan, params, bounds, split, scale,
-        f", budget {scales.index(scale) + 1} of {len(scales)}" if len(scales) > 1 else ""))
+        f", budget {next(tried)} of {len(scales)}" if len(scales) > 1 else ""))
     best.seconds = time.perf_counter() - started
     return best
 
