@@ -122,12 +122,17 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
 /* ---------------------------------------------------------------- codes and rows */
 /* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of one
  * 64-bit load (a code is at most 16 + 32 bits). */
+/* The value of a short code that starts at bit 0 of w: q zeros, a one, k low bits. */
+static MCD_HOT_INLINE uint64_t rice_value(uint64_t w, uint32_t q, uint32_t k) {
+    return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+}
+
 static MCD_HOT_INLINE uint64_t rice(const uint8_t* data, uint32_t* bit, uint32_t k) {
     uint64_t w = mcd_rd_u64(data + (*bit >> 3)) >> (*bit & 7u);
     uint32_t q = mcd_lowest_bit(w | ((uint64_t)1 << RICE_CAP));
     if (q < RICE_CAP) {
         *bit += q + 1u + k;
-        return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+        return rice_value(w, q, k);
     }
     *bit += RICE_CAP + RICE_RAW;
     return (w >> RICE_CAP) & 0xFFFFFFFFu;
@@ -202,13 +207,14 @@ static MCD_HOT_INLINE uint64_t bits_code(const uint8_t* data, bits* B, uint32_t 
     q = mcd_lowest_bit(B->w | ((uint64_t)1 << RICE_CAP));
     n = q + 1u + k;
     if (q < RICE_CAP && n <= B->avail) {
-        z = ((uint64_t)q << k) | ((B->w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
+        z = rice_value(B->w, q, k);
         B->w >>= n; /* n <= 15 + 1 + 31 < 64 */
         B->avail -= n;
         B->bit += n;
         return z;
     }
-    /* Inline: out of line (a cold call) the register went through memory, random 15 % slower. */
+    /* Inline: out of line (a cold call) the register went through memory, random 17-20 %
+     * slower (bench/results/rma_key_register.txt). */
     z = rice(data, &B->bit, k);
     bits_at(data, B, B->bit);
     return z;
@@ -370,7 +376,7 @@ static MCD_HOT_INLINE void advance_v(const uint8_t* p, track_state* ts, uint32_t
     key k;
     /* memmove: copies through locals took fewer instructions but timed 10 % slower at 0.02 cm
      * (their vector loads of the slot just stored wait for the stores), and a ring of slots
-     * (no copies; the curve gathers them) 24 % slower. */
+     * (no copies; the curve gathers them) 23 % slower (bench/results/rma_key_register.txt). */
     memmove(ts->W.t, ts->W.t + 1, 3u * sizeof ts->W.t[0]);
     memmove(ts->W.v[0], ts->W.v[1], 3u * sizeof ts->W.v[0]);
     ts->W.i++;
