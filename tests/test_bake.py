@@ -326,6 +326,60 @@ def test_progress_lines_without_a_terminal_and_nothing_when_off():
     assert quiet.getvalue() == "" and q._bar is None
 
 
+def _says_where_it_is(motion, cm_per_unit, settings, check):
+    """rma's encode_clip, after reporting from within the clip as a long clip's windows do."""
+    from mocodec.bake.progress import report_within
+
+    for k in range(3):
+        report_within(f"step {k + 1} of 3")
+    return encode_clip(motion, cm_per_unit, settings, check)
+
+
+def _within_lines(library, runner) -> tuple[list, list[str]]:
+    import io
+
+    from mocodec.codecs.rma import section_prefix
+    from mocodec.encode import RuntimeCheck
+
+    motions, units = library
+    stream = io.StringIO()
+    progress = Progress(len(motions), stream=stream, bar=False, within_every=0.0)
+    jobs = [ClipJob(m.name, _says_where_it_is, m, 5.6444, RMASettings(Tolerance(TOL)),
+                    RuntimeCheck([m], [5.6444], "rma").one_clip(0, section_prefix(1))) for m in motions]
+    with runner:
+        runner.run(jobs, progress)
+    return motions, stream.getvalue().splitlines()
+
+
+@pytest.mark.parametrize("runner", [SerialRunner, lambda: ProcessRunner(2)], ids=["serial", "processes"])
+def test_each_clip_shows_where_it_has_got_to_wherever_it_runs(library, runner):
+    motions, lines = _within_lines(library, runner())
+    for m in motions:  # every report of every clip, before the clip's own line
+        mine = [line for line in lines if line.startswith(f"  {m.name}: step ")]
+        assert [line.split(" (")[0] for line in mine] == [f"  {m.name}: step {k} of 3" for k in (1, 2, 3)]
+        done_at = next(i for i, line in enumerate(lines) if line.startswith("  [") and f"] {m.name} (" in line)
+        assert lines.index(mine[-1]) < done_at
+
+
+def test_a_report_of_a_clip_not_running_is_dropped_and_news_shown_once():
+    import io
+
+    stream = io.StringIO()
+    p = Progress(2, stream=stream, bar=False, within_every=0.0)
+    p.within("walk", "window 1 of 9")  # not started (or already ended): nothing
+    assert stream.getvalue() == ""
+    p.started("walk")
+    p.started("run")
+    p.within("walk", "window 2 of 9")
+    p.within("run", "window 1 of 4")  # walk's news is shown already: only run's
+    p("walk")
+    p.within("walk", "window 3 of 9")  # after walk ended (a late report from its worker)
+    lines = stream.getvalue().splitlines()
+    assert [line.split(" (")[0] for line in lines] == ["  walk: window 2 of 9", "  run: window 1 of 4",
+                                                       "  [1/2] walk"]
+    assert p.status == {"run": "window 1 of 4"}
+
+
 def _pid(_: object) -> int:
     return os.getpid()
 
@@ -456,6 +510,12 @@ def test_dask_runs_rma_pca_to_the_serial_bytes(library, pca_serial, cluster):
     with make_runner(None, cluster.scheduler_address) as runner:
         assert encode_motions(motions, units, "rma-pca", Tolerance(TOL), options={"variance": 0.95},
                               runner=runner).asset == pca_serial
+
+
+def test_dask_workers_send_where_their_clips_have_got_to(library, cluster):
+    motions, lines = _within_lines(library, make_runner(None, cluster.scheduler_address))
+    for m in motions:  # events and results reach the client by different routes: some report, not each
+        assert any(line.startswith(f"  {m.name}: step ") for line in lines)
 
 
 def test_dask_bakes_a_streamed_library_to_the_same_bytes(sample_paths, files_asset, cluster):

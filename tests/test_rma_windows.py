@@ -239,6 +239,7 @@ def test_progress_within_a_clip_waits_its_interval():
 
     stream = io.StringIO()
     p = Progress(1, stream=stream, bar=False, within_every=3600.0)
+    p.started("walk")
     p.within("walk", "window 1 of 9")
     assert stream.getvalue() == ""  # not an hour since the start
     p.within_every = 0.0
@@ -246,7 +247,7 @@ def test_progress_within_a_clip_waits_its_interval():
     assert stream.getvalue().startswith("  walk: window 2 of 9 (")
 
 
-def test_the_bar_shows_a_clips_windows_after_the_workers_clips():
+def test_the_bar_shows_a_clips_windows_beside_its_worker():
     import io
 
     from mocodec.bake.progress import Progress
@@ -256,7 +257,7 @@ def test_the_bar_shows_a_clips_windows_after_the_workers_clips():
     p.started("walk")
     p.hit("idle")
     p.within("walk", "window 3 of 9")
-    assert p._bar is not None and "w1 walk  (1 cached)  walk: window 3 of 9" in stream.getvalue()
+    assert p._bar is not None and "w1 walk: window 3 of 9  (1 cached)" in stream.getvalue()
     p("walk")
     assert p._bar is None
 

@@ -6,9 +6,10 @@ name when it is done, told by ``started(name)`` when a worker takes one and by `
 when one comes from the cache.
 
 Within a clip: a codec's long work calls :func:`report_within` (the windows of a long capture),
-and a clip encoded in this process (one clip, or ``--jobs 1``) shows where it has got to, a
-line every ``within_every`` seconds, so a two-hour capture is not silent for minutes. Clips in
-worker processes show only when done.
+and the clip shows where it has got to, on the bar beside its worker or as a line, at most every
+``within_every`` seconds, so a two-hour capture is not silent for minutes. A clip encoded in
+this process reports straight to the :class:`Progress`; one in a worker process or on a Dask
+worker sends its reports to the parent (:mod:`.runners`), which passes them on.
 """
 from __future__ import annotations
 
@@ -33,22 +34,27 @@ def report_within(status: str) -> None:
 
 
 @contextlib.contextmanager
-def within_clip(progress: Any, name: str) -> Iterator[None]:
-    """Around the encoding of clip ``name`` in this process: its :func:`report_within` calls go
-    to ``progress.within(name, status)`` when ``progress`` has that method."""
-    method = getattr(progress, "within", None)
-    token = _WITHIN.set(None if method is None else (lambda status: method(name, status)))
+def reporting(name: str, send: Callable[[str, str], None] | None) -> Iterator[None]:
+    """Around the encoding of clip ``name``: its :func:`report_within` calls go to
+    ``send(name, status)`` (None: nowhere)."""
+    token = _WITHIN.set(None if send is None else (lambda status: send(name, status)))
     try:
         yield
     finally:
         _WITHIN.reset(token)
 
 
+def within_clip(progress: Any, name: str) -> contextlib.AbstractContextManager[None]:
+    """Around the encoding of clip ``name`` in this process: its :func:`report_within` calls go
+    to ``progress.within(name, status)`` when ``progress`` has that method."""
+    return reporting(name, getattr(progress, "within", None))
+
+
 class Progress:
     """Progress of ``total`` steps on ``stream`` (stderr); ``enabled=False`` (``--quiet``,
     ``--json``) shows nothing. Fewer than two steps show no count, but still where a long clip
-    has got to (:meth:`within`): a report at least ``within_every`` seconds after the last one
-    shown (or the start)."""
+    has got to (:meth:`within`): shown at least ``within_every`` seconds after the last time
+    (or the start)."""
 
     def __init__(self, total: int, enabled: bool = True, stream: IO[str] | None = None,
                  bar: bool | None = None, within_every: float = 10.0) -> None:
@@ -60,6 +66,8 @@ class Progress:
         self.within_every = within_every
         self._within_at = self.started_at
         self.slots: dict[int, str] = {}  # worker slot -> the clip it is on
+        self.status: dict[str, str] = {}  # a running clip -> where it has got to (within)
+        self._shown: dict[str, str] = {}  # what the lines have shown of it
         self._bar = None
         if self.enabled and (bar if bar is not None else self.stream.isatty()):
             from tqdm import tqdm
@@ -84,6 +92,8 @@ class Progress:
             if running == name:
                 del self.slots[slot]
                 break
+        self.status.pop(name, None)
+        self._shown.pop(name, None)
         if self._bar is not None:
             self._bar.set_postfix_str(self.postfix(), refresh=False)
             self._bar.update(1)
@@ -94,21 +104,30 @@ class Progress:
                   file=self.stream, flush=True)
 
     def within(self, name: str, status: str) -> None:
-        """Clip ``name``, encoded in this process, has got to ``status``: on the bar (after the
-        workers' clips), or a line, when ``within_every`` seconds have passed since the last
-        one shown (or since the start)."""
+        """Running clip ``name`` has got to ``status``. Shown, with every other running clip's
+        news, when ``within_every`` seconds have passed since the last time (or the start): on
+        the bar beside the clip's worker, or a line a clip. A report of a clip not running (one
+        from a worker that arrives after its clip ended) is dropped."""
+        if not self.watching or name not in self.slots.values():
+            return
+        self.status[name] = status
         now = time.perf_counter()
-        if not self.watching or now - self._within_at < self.within_every:
+        if now - self._within_at < self.within_every:
             return
         self._within_at = now
         if self._bar is not None:
-            self._bar.set_postfix_str(f"{self.postfix()}  {printable(name)}: {status}".strip(), refresh=True)
-        else:
-            print(f"  {printable(name)}: {status} ({now - self.started_at:.1f}s)", file=self.stream, flush=True)
+            self._bar.set_postfix_str(self.postfix(), refresh=True)
+            return
+        for running in self.slots.values():
+            news = self.status.get(running)
+            if news is not None and self._shown.get(running) != news:
+                self._shown[running] = news
+                print(f"  {printable(running)}: {news} ({now - self.started_at:.1f}s)", file=self.stream, flush=True)
 
     def postfix(self) -> str:
-        """The bar's tail: each worker's clip, and the cache hits so far."""
-        running = "  ".join(f"w{slot + 1} {printable(name)}" for slot, name in sorted(self.slots.items()))
+        """The bar's tail: each worker's clip (and where it has got to), the cache hits so far."""
+        running = "  ".join(f"w{slot + 1} {printable(name)}" + (f": {self.status[name]}" if name in self.status else "")
+                            for slot, name in sorted(self.slots.items()))
         hits = f"  ({self.hits} cached)" if self.hits else ""
         return running + hits
 

@@ -21,8 +21,10 @@ import dataclasses
 import functools
 import multiprocessing
 import os
+import queue
 import signal
 import threading
+import time
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator, Sequence
@@ -31,7 +33,7 @@ from ..motion import Motion
 from .cache import ClipCache, job_key
 from .fingerprint import encoder_fingerprint
 from .library import ClipRef
-from .progress import within_clip
+from .progress import reporting, within_clip
 from .spool import PayloadSpool
 
 ProgressFn = Callable[[str], None]
@@ -43,6 +45,17 @@ WAIT_FOR_WORKERS_S = 60.0
 
 CONNECT_TIMEOUT_S = 10.0
 """How long connecting to a Dask scheduler may take."""
+
+REPORTS_EVERY_S = 0.5
+"""How often a parent waiting for its workers' clips passes on their reports from within a clip
+(the :class:`~.progress.Progress` decides what it shows)."""
+
+WITHIN_TOPIC = "mocodec-within"
+"""The Dask event topic of a clip's reports from within (a worker's ``log_event``)."""
+
+DASK_POLL_S = 0.1
+"""How often a parent waiting for a Dask cluster's clips looks for their reports (as often as
+``distributed.as_completed`` itself looks for a finished task)."""
 
 
 class BakeError(RuntimeError):
@@ -115,6 +128,47 @@ def _same_encoder(fingerprint: str, fn: Callable[[Any], Any], item: Any) -> Any:
     return fn(item)
 
 
+_REPORTS: Any = None
+"""In a worker process of a :class:`ProcessRunner`: the queue its clips' reports from within go
+to (the parent reads it)."""
+
+
+REPORT_CHARS = 200
+"""A status sent from a worker is cut to this (with a clip's name, one pipe write: a worker
+killed in the middle of a put cannot leave half a report for the parent to wait on)."""
+
+
+def _to_queue(name: str, status: str) -> None:
+    try:
+        _REPORTS.put((name, status[:REPORT_CHARS]))
+    except (OSError, ValueError):  # the parent closed it (stopping): a report is not worth a failed clip
+        pass
+
+
+def _to_dask(name: str, status: str) -> None:
+    from distributed import get_worker
+
+    try:
+        get_worker().log_event(WITHIN_TOPIC, {"name": name, "status": status})
+    except (OSError, ValueError, RuntimeError):  # a worker shutting down: as above
+        pass
+
+
+def _report_sender() -> Callable[[str, str], None] | None:
+    """Where a clip's reports from within go from this process: the parent's queue in a worker
+    process, the client's event topic on a Dask worker, else None (a clip in the parent's own
+    process reports straight to its progress: :meth:`Runner._dispatch`)."""
+    if _REPORTS is not None:
+        return _to_queue
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return None
+    return _to_dask
+
+
 def run_job(job: ClipJob) -> ClipOutcome:
     """Encode one clip (in whichever process runs it)."""
     if job.fingerprint and job.fingerprint != encoder_fingerprint(binaries=False):
@@ -122,8 +176,18 @@ def run_job(job: ClipJob) -> ClipOutcome:
             f"clip {job.name!r}: a Dask worker runs other mocodec code than this client (fingerprint "
             f"{encoder_fingerprint(binaries=False)[:12]} vs {job.fingerprint[:12]}); install the same "
             "mocodec on the workers")
-    r = job.encode_clip(job.load(), job.cm_per_unit, job.settings, job.check)
+    send = _report_sender()
+    with reporting(job.name, send) if send is not None else contextlib.nullcontext():
+        r = job.encode_clip(job.load(), job.cm_per_unit, job.settings, job.check)
     return ClipOutcome(r.payload, dict(r.stats), float(r.seconds))
+
+
+def _pass_on(reports: Iterator[tuple[str, str]], progress: ProgressFn | None) -> None:
+    """Give the workers' reports from within a clip to ``progress.within`` (if it has it)."""
+    within = getattr(progress, "within", None)
+    for name, status in reports:
+        if within is not None:
+            within(name, status)
 
 
 class Runner:
@@ -240,6 +304,13 @@ def _ignore_interrupt() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _start_worker(reports: Any) -> None:
+    """A worker process's start: Ctrl-C ignored, its clips' reports to ``reports``."""
+    global _REPORTS
+    _ignore_interrupt()
+    _REPORTS = reports
+
+
 BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """What a worker process's numpy may run beside it: one thread (the workers fill the cores;
 a BLAS pool in each, spinning for a core, made rma-pca's bake 5x slower on two)."""
@@ -285,13 +356,22 @@ class ProcessRunner(Runner):
             raise ValueError(f"--jobs must be at least 1, got {workers}")
         self.workers = workers
         self._pool: cf.ProcessPoolExecutor | None = None
+        self._reports: Any = None  # the workers' reports from within a clip
+
+    def _received(self) -> Iterator[tuple[str, str]]:
+        while self._reports is not None and not self._reports.empty():  # the only reader: get() will not wait
+            yield self._reports.get()
 
     def _executor(self) -> cf.ProcessPoolExecutor:
         if self._pool is None:
             # Spawned, not forked: the parent may hold threads (a progress bar) and their locks;
             # and the workers are this process's children, so `time` counts their CPU.
             context = multiprocessing.get_context("spawn")
-            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_ignore_interrupt)
+            # A SimpleQueue writes in put() itself (a Queue leaves it to a thread): a clip's
+            # reports are in the pipe before its outcome is sent, so none arrive after it ended.
+            self._reports = context.SimpleQueue()
+            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_start_worker,
+                                                initargs=(self._reports,))
         return self._pool
 
     def _dispatch(self, to_encode: list[tuple[int, ClipJob]],
@@ -312,7 +392,11 @@ class ProcessRunner(Runner):
             return f
 
         def wait_one(futures: set) -> cf.Future:
-            return next(iter(cf.wait(futures, return_when=cf.FIRST_COMPLETED).done))
+            while True:  # woken now and then to pass on the reports from within the clips
+                done = cf.wait(futures, timeout=REPORTS_EVERY_S, return_when=cf.FIRST_COMPLETED).done
+                _pass_on(self._received(), progress)
+                if done:
+                    return next(iter(done))
 
         try:
             for f, i, job in _windowed(to_encode, self.workers, submit, wait_one, progress):
@@ -349,12 +433,15 @@ class ProcessRunner(Runner):
 
     def close(self, kill: bool = False) -> None:
         pool, self._pool = self._pool, None
+        reports, self._reports = self._reports, None
         if pool is None:
             return
         if kill:  # a clip failed or the user interrupted: the other clips' work is not wanted
             for p in list(getattr(pool, "_processes", {}).values()):
                 p.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
+        if reports is not None:
+            reports.close()
 
 
 class DaskRunner(Runner):
@@ -394,6 +481,16 @@ class DaskRunner(Runner):
         workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         in_flight: set = set()
         finished = as_completed(loop=self.client.loop)  # this client's futures, as they end
+        # The workers' reports from within a clip arrive on the client's event loop thread.
+        received: queue.SimpleQueue = queue.SimpleQueue()
+        self.client.subscribe_topic(WITHIN_TOPIC, lambda event: received.put((event[1]["name"], event[1]["status"])))
+
+        def drained() -> Iterator[tuple[str, str]]:
+            while True:
+                try:
+                    yield received.get_nowait()
+                except queue.Empty:
+                    return
 
         def submit(job: ClipJob) -> Any:
             with warnings.catch_warnings():
@@ -407,6 +504,10 @@ class DaskRunner(Runner):
             return f
 
         def wait_one(futures: set) -> Any:
+            while not finished.has_ready() and not finished.is_empty():
+                _pass_on(drained(), progress)
+                time.sleep(DASK_POLL_S)
+            _pass_on(drained(), progress)
             f = next(finished)
             in_flight.discard(f)
             return f
@@ -427,6 +528,8 @@ class DaskRunner(Runner):
         except BaseException:
             self.client.cancel(list(in_flight), force=True)
             raise
+        finally:
+            self.client.unsubscribe_topic(WITHIN_TOPIC)
 
     def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
         if not items:
