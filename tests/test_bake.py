@@ -361,6 +361,23 @@ def test_each_clip_shows_where_it_has_got_to_wherever_it_runs(library, runner):
         assert lines.index(mine[-1]) < done_at
 
 
+def test_a_workers_report_fits_one_pipe_write_and_a_serial_clip_sends_none(monkeypatch):
+    import pickle
+
+    from mocodec.bake import runners
+
+    sent: list = []
+    monkeypatch.setattr(runners, "_REPORTS", type("Q", (), {"put": lambda self, x: sent.append(x)})())
+    runners._to_queue("walk", "window 1 of 9, " + "é" * 400)
+    runners._to_queue("w" * (runners.NAME_BYTES + 1), "window 1 of 9")  # too long a name: not sent
+    assert len(sent) == 1 and sent[0][1].startswith("window 1 of 9, é")
+    assert 4 + len(pickle.dumps(("x" * runners.NAME_BYTES, sent[0][1]))) < 512  # with the pipe's length header
+    monkeypatch.setattr(runners, "_REPORTS", None)
+    job = ClipJob("walk", encode_clip, None, 1.0, None, lambda p: None)
+    assert runners._report_sender(job) is None  # this process: reports go straight to its progress
+    assert runners._report_sender(dataclasses.replace(job, report_to="a-client")) is None  # not a Dask worker
+
+
 def test_a_report_of_a_clip_not_running_is_dropped_and_news_shown_once():
     import io
 

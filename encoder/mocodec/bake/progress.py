@@ -46,7 +46,8 @@ def reporting(name: str, send: Callable[[str, str], None] | None) -> Iterator[No
 
 def within_clip(progress: Any, name: str) -> contextlib.AbstractContextManager[None]:
     """Around the encoding of clip ``name`` in this process: its :func:`report_within` calls go
-    to ``progress.within(name, status)`` when ``progress`` has that method."""
+    to ``progress.within(name, status)`` when ``progress`` has that method (a :class:`Progress`
+    shows them while the clip is running: between ``started(name)`` and ``progress(name)``)."""
     return reporting(name, getattr(progress, "within", None))
 
 

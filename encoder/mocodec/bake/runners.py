@@ -23,6 +23,7 @@ import multiprocessing
 import os
 import queue
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -51,7 +52,8 @@ REPORTS_EVERY_S = 0.5
 (the :class:`~.progress.Progress` decides what it shows)."""
 
 WITHIN_TOPIC = "mocodec-within"
-"""The Dask event topic of a clip's reports from within (a worker's ``log_event``)."""
+"""The Dask event topic of a clip's reports from within (a worker's ``log_event``), followed by
+the client's id: topics are the scheduler's, and two bakes on one cluster see only their own."""
 
 DASK_POLL_S = 0.1
 """How often a parent waiting for a Dask cluster's clips looks for their reports (as often as
@@ -75,7 +77,8 @@ class ClipJob:
     ``check`` (payload -> world error, the clip alone through the runtime, in a section that
     starts with ``prefix``) and everything else here must pickle for a process or Dask runner.
     ``fingerprint``: the client's :func:`~.fingerprint.encoder_fingerprint` (without binaries),
-    set by runners whose workers may run other code."""
+    set by runners whose workers may run other code. ``report_to``: the Dask client the clip's
+    reports from within go to (its id), set by the Dask runner."""
 
     name: str
     encode_clip: Callable[..., Any]
@@ -85,6 +88,7 @@ class ClipJob:
     check: Callable[[bytes], Any]
     prefix: bytes = b""
     fingerprint: str = ""
+    report_to: str = ""
 
     @property
     def weight(self) -> int:
@@ -133,40 +137,45 @@ _REPORTS: Any = None
 to (the parent reads it)."""
 
 
-REPORT_CHARS = 200
-"""A status sent from a worker is cut to this (with a clip's name, one pipe write: a worker
-killed in the middle of a put cannot leave half a report for the parent to wait on)."""
+NAME_BYTES, STATUS_BYTES = 300, 150
+"""A worker sends a report only when the clip's name fits in NAME_BYTES (UTF-8), and cuts its
+status to STATUS_BYTES: pickled and framed, a report is then under 512 bytes, one write to the
+pipe on every system (POSIX: PIPE_BUF >= 512), so a worker killed in the middle of a put cannot
+leave half a report for the parent to wait on."""
 
 
 def _to_queue(name: str, status: str) -> None:
+    if len(name.encode()) > NAME_BYTES:
+        return
     try:
-        _REPORTS.put((name, status[:REPORT_CHARS]))
+        _REPORTS.put((name, status.encode()[:STATUS_BYTES].decode(errors="ignore")))
     except (OSError, ValueError):  # the parent closed it (stopping): a report is not worth a failed clip
         pass
 
 
-def _to_dask(name: str, status: str) -> None:
+def _report_sender(job: ClipJob) -> Callable[[str, str], None] | None:
+    """Where the reports from within ``job``'s clip go from this process: the parent's queue in
+    a worker process, the client's event topic on a Dask worker, else None (a clip in the
+    parent's own process reports straight to its progress: :meth:`Runner._dispatch`)."""
+    if _REPORTS is not None:
+        return _to_queue
+    if not job.report_to or "distributed" not in sys.modules:  # a Dask worker has it imported
+        return None
     from distributed import get_worker
 
     try:
-        get_worker().log_event(WITHIN_TOPIC, {"name": name, "status": status})
-    except (OSError, ValueError, RuntimeError):  # a worker shutting down: as above
-        pass
-
-
-def _report_sender() -> Callable[[str, str], None] | None:
-    """Where a clip's reports from within go from this process: the parent's queue in a worker
-    process, the client's event topic on a Dask worker, else None (a clip in the parent's own
-    process reports straight to its progress: :meth:`Runner._dispatch`)."""
-    if _REPORTS is not None:
-        return _to_queue
-    try:
-        from distributed import get_worker
-
-        get_worker()
-    except (ImportError, ValueError):
+        worker = get_worker()
+    except ValueError:  # not on a worker
         return None
-    return _to_dask
+    topic = f"{WITHIN_TOPIC}-{job.report_to}"
+
+    def to_dask(name: str, status: str) -> None:
+        try:
+            worker.log_event(topic, {"name": name, "status": status})
+        except (OSError, ValueError, RuntimeError):  # a worker shutting down: as above
+            pass
+
+    return to_dask
 
 
 def run_job(job: ClipJob) -> ClipOutcome:
@@ -176,7 +185,7 @@ def run_job(job: ClipJob) -> ClipOutcome:
             f"clip {job.name!r}: a Dask worker runs other mocodec code than this client (fingerprint "
             f"{encoder_fingerprint(binaries=False)[:12]} vs {job.fingerprint[:12]}); install the same "
             "mocodec on the workers")
-    send = _report_sender()
+    send = _report_sender(job)
     with reporting(job.name, send) if send is not None else contextlib.nullcontext():
         r = job.encode_clip(job.load(), job.cm_per_unit, job.settings, job.check)
     return ClipOutcome(r.payload, dict(r.stats), float(r.seconds))
@@ -483,7 +492,8 @@ class DaskRunner(Runner):
         finished = as_completed(loop=self.client.loop)  # this client's futures, as they end
         # The workers' reports from within a clip arrive on the client's event loop thread.
         received: queue.SimpleQueue = queue.SimpleQueue()
-        self.client.subscribe_topic(WITHIN_TOPIC, lambda event: received.put((event[1]["name"], event[1]["status"])))
+        topic = f"{WITHIN_TOPIC}-{self.client.id}"
+        self.client.subscribe_topic(topic, lambda event: received.put((event[1]["name"], event[1]["status"])))
 
         def drained() -> Iterator[tuple[str, str]]:
             while True:
@@ -497,7 +507,8 @@ class DaskRunner(Runner):
                 # A clip's frames are its task's argument (a long clip is a large one, by design):
                 # a worker needs no access to the input files.
                 warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
-                f = self.client.submit(run_job, dataclasses.replace(job.carried(), fingerprint=fingerprint),
+                f = self.client.submit(run_job, dataclasses.replace(job.carried(), fingerprint=fingerprint,
+                                                                    report_to=self.client.id),
                                        pure=False, key=f"mocodec-clip-{os.urandom(8).hex()}")
             in_flight.add(f)
             finished.add(f)
@@ -529,7 +540,9 @@ class DaskRunner(Runner):
             self.client.cancel(list(in_flight), force=True)
             raise
         finally:
-            self.client.unsubscribe_topic(WITHIN_TOPIC)
+            # A client that lost its scheduler cannot unsubscribe: the error that ended the bake matters.
+            with contextlib.suppress(Exception):
+                self.client.unsubscribe_topic(topic)
 
     def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
         if not items:
