@@ -5,9 +5,9 @@
  * A track's keys come in blocks of 2^b. A block's row, at a fixed bit stride, holds its first
  * key whole (frame and lattice integers), where its codes start and their Rice parameters;
  * every later key is its frame gap and its differences from the key before, Rice coded (a
- * count of trailing zeros a code, the codes of a key from one 64-bit load). Version 4 adds, per block and stream, a
- * stream of zeros with no codes and, per component, a slope predictor (the difference before
- * plus the code). A random access searches the rows by frame and decodes on from its block's
+ * count of trailing zeros a code, the codes of a key from one 64-bit load). Version 4 adds,
+ * per block and stream, a stream of zeros with no codes and, per component, a slope predictor
+ * (the difference before plus the code). A random access searches the rows by frame and decodes on from its block's
  * first key to the keys around x; playback keeps a reader per track and decodes one key per
  * key interval, a step forward of a few keys (a game tick) just those keys.
  *
@@ -120,13 +120,13 @@ static mcd_result track_geometry(const uint8_t* d, uint32_t frames, uint32_t at,
 }
 
 /* ---------------------------------------------------------------- codes and rows */
-/* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of one
- * 64-bit load (a code is at most 16 + 32 bits). */
 /* The value of a short code that starts at bit 0 of w: q zeros, a one, k low bits. */
 static MCD_HOT_INLINE uint64_t rice_value(uint64_t w, uint32_t q, uint32_t k) {
     return ((uint64_t)q << k) | ((w >> (q + 1u)) & (((uint64_t)1 << k) - 1u));
 }
 
+/* One Rice code at *bit with parameter k: the quotient is the count of trailing zeros of one
+ * 64-bit load (a code is at most 16 + 32 bits). */
 static MCD_HOT_INLINE uint64_t rice(const uint8_t* data, uint32_t* bit, uint32_t k) {
     uint64_t w = mcd_rd_u64(data + (*bit >> 3)) >> (*bit & 7u);
     uint32_t q = mcd_lowest_bit(w | ((uint64_t)1 << RICE_CAP));

@@ -191,10 +191,13 @@ def run_job(job: ClipJob) -> ClipOutcome:
     return ClipOutcome(r.payload, dict(r.stats), float(r.seconds))
 
 
-def _pass_on(reports: Iterator[tuple[str, str]], progress: ProgressFn | None) -> None:
-    """Give the workers' reports from within a clip to ``progress.within`` (if it has it)."""
+def _pass_on(reports: Any, progress: ProgressFn | None) -> None:
+    """Give the workers' reports from within a clip waiting in ``reports`` (a queue this thread
+    alone reads, so ``get`` after ``empty`` does not wait; None: none) to ``progress.within``
+    (if it has it)."""
     within = getattr(progress, "within", None)
-    for name, status in reports:
+    while reports is not None and not reports.empty():
+        name, status = reports.get()
         if within is not None:
             within(name, status)
 
@@ -367,10 +370,6 @@ class ProcessRunner(Runner):
         self._pool: cf.ProcessPoolExecutor | None = None
         self._reports: Any = None  # the workers' reports from within a clip
 
-    def _received(self) -> Iterator[tuple[str, str]]:
-        while self._reports is not None and not self._reports.empty():  # the only reader: get() will not wait
-            yield self._reports.get()
-
     def _executor(self) -> cf.ProcessPoolExecutor:
         if self._pool is None:
             # Spawned, not forked: the parent may hold threads (a progress bar) and their locks;
@@ -403,7 +402,7 @@ class ProcessRunner(Runner):
         def wait_one(futures: set) -> cf.Future:
             while True:  # woken now and then to pass on the reports from within the clips
                 done = cf.wait(futures, timeout=REPORTS_EVERY_S, return_when=cf.FIRST_COMPLETED).done
-                _pass_on(self._received(), progress)
+                _pass_on(self._reports, progress)
                 if done:
                     return next(iter(done))
 
@@ -495,13 +494,6 @@ class DaskRunner(Runner):
         topic = f"{WITHIN_TOPIC}-{self.client.id}"
         self.client.subscribe_topic(topic, lambda event: received.put((event[1]["name"], event[1]["status"])))
 
-        def drained() -> Iterator[tuple[str, str]]:
-            while True:
-                try:
-                    yield received.get_nowait()
-                except queue.Empty:
-                    return
-
         def submit(job: ClipJob) -> Any:
             with warnings.catch_warnings():
                 # A clip's frames are its task's argument (a long clip is a large one, by design):
@@ -516,9 +508,9 @@ class DaskRunner(Runner):
 
         def wait_one(futures: set) -> Any:
             while not finished.has_ready() and not finished.is_empty():
-                _pass_on(drained(), progress)
+                _pass_on(received, progress)
                 time.sleep(DASK_POLL_S)
-            _pass_on(drained(), progress)
+            _pass_on(received, progress)
             f = next(finished)
             in_flight.discard(f)
             return f
